@@ -1,0 +1,29 @@
+# Tree from Video — the two set-up commands are `make demo` and `make test`.
+PY := .venv/bin/python
+SAMPLE ?= broad
+REAL_BLENDER := ../shared/tools/real-blender
+
+.PHONY: setup demo test test-core test-blender bench clean
+
+setup:
+	bash scripts/setup.sh
+
+demo: setup
+	$(PY) batch.py sample_videos/$(SAMPLE)/video.mp4 --outline sample_videos/$(SAMPLE)/outline.json \
+		--out out/$(SAMPLE) --npz --force
+	@echo "demo: wrote out/$(SAMPLE)/skeleton.npz, overlay.png, overlay.mp4"
+
+test: setup
+	bash scripts/test.sh
+
+test-core: setup
+	$(PY) -m pytest -q tests
+
+test-blender:
+	bash scripts/test_blender.sh
+
+bench: setup
+	$(PY) benchmarks/bench_skeleton.py
+
+clean:
+	rm -rf out dist .pytest_cache

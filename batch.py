@@ -1,0 +1,130 @@
+"""Batch entry: video + outline → moving 2D skeleton (and, in later stages, the 3D tree).
+
+    python batch.py VIDEO --outline OUTLINE.json|MASK.png --out DIR [options]
+
+Exit codes: 0 success, 2 bad input (one line on stderr naming the problem and the fix),
+1 internal error. Progress lines go to stderr.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import os
+import sys
+import time
+import traceback
+
+PACKAGE = "tree_from_video"
+
+
+def _package():
+    """The extension package: the installed add-on inside Blender, else this folder loaded as it."""
+    if PACKAGE in sys.modules:
+        return sys.modules[PACKAGE]
+    here = os.path.dirname(os.path.abspath(__file__))
+    spec = importlib.util.spec_from_file_location(PACKAGE, os.path.join(here, "__init__.py"),
+                                                  submodule_search_locations=[here])
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules[PACKAGE] = mod
+    spec.loader.exec_module(mod)
+    return mod
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):  # one line, exit 2
+        sys.stderr.write(f"error: {message}; see --help\n")
+        sys.exit(2)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = _Parser(prog="batch.py", description="Reconstruct a moving tree skeleton from a video.")
+    p.add_argument("video", help="input video file (mp4/mov/avi)")
+    p.add_argument("--outline", required=True,
+                   help="tree outline in frame 1: JSON list of [x, y] pixel points, or a mask image (white = tree)")
+    p.add_argument("--out", required=True, help="output folder (created if missing)")
+    p.add_argument("--npz", action="store_true",
+                   help="also write DIR/result.npz: parents (N,), nodes2d (F, N, 2) px, level (N,), fps")
+    p.add_argument("--levels", type=int, default=6, help="hierarchy levels incl. the root, 2..9 (default 6; paper: 5-7)")
+    p.add_argument("--frames", default=None, metavar="A:B",
+                   help="frame range, 0-based, B exclusive; either side may be empty (default: all)")
+    p.add_argument("--skeleton", choices=("traced", "paper"), default="traced",
+                   help="traced: branches traced in the video (default); paper: cluster centroids folded toward parents")
+    p.add_argument("--scale", type=float, default=1.0, help="downscale the video by this factor (0 < s <= 1) for speed")
+    p.add_argument("--no-video", action="store_true", help="skip overlay.mp4 (overlay.png is still written)")
+    p.add_argument("--force", action="store_true", help="overwrite existing output files in DIR")
+    p.add_argument("--quiet", action="store_true", help="no progress lines")
+    return p
+
+
+def _progress_printer(quiet: bool):
+    last = {"stage": None, "t": 0.0}
+
+    def cb(stage: str, frac: float):
+        now = time.monotonic()
+        if quiet or (stage == last["stage"] and now - last["t"] < 1.0 and frac < 1.0):
+            return None
+        last.update(stage=stage, t=now)
+        sys.stderr.write(f"[{stage}] {100 * frac:3.0f}%\n")
+        return None
+    return cb
+
+
+def _check_out(out: str, names: list[str], force: bool, InputError) -> None:
+    if os.path.exists(out) and not os.path.isdir(out):
+        raise InputError(f"--out '{out}' is a file; give a folder")
+    parent = out if os.path.isdir(out) else os.path.dirname(os.path.abspath(out))
+    while not os.path.exists(parent):
+        parent = os.path.dirname(parent)
+    if not os.access(parent, os.W_OK):
+        raise InputError(f"output folder '{out}' is not writable; choose another --out")
+    existing = [n for n in names if os.path.exists(os.path.join(out, n))]
+    if existing and not force:
+        raise InputError(f"{os.path.join(out, existing[0])} exists; pass --force to overwrite or choose another --out")
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    pkg = _package()
+    from importlib import import_module
+    errors = import_module(f"{PACKAGE}.core.errors")
+    try:
+        pipeline = import_module(f"{PACKAGE}.core.pipeline")
+        model = import_module(f"{PACKAGE}.core.model")
+        overlay = import_module(f"{PACKAGE}.core.overlay")
+        names = ["skeleton.npz", "overlay.png"] + ([] if args.no_video else ["overlay.mp4"]) \
+            + (["result.npz"] if args.npz else [])
+        settings = pipeline.Settings(levels=args.levels, skeleton=args.skeleton, frames=args.frames,
+                                     scale=args.scale)
+        pipeline.check_settings(settings)
+        _check_out(args.out, names, args.force, errors.InputError)
+        cb = _progress_printer(args.quiet)
+        res = pipeline.run(args.video, args.outline, settings, cb)
+        os.makedirs(args.out, exist_ok=True)
+        for w in res.warnings:
+            sys.stderr.write(f"warning: {w}\n")
+        meta = {"video": os.path.abspath(args.video), "frames": [res.start, res.stop],
+                "levels": args.levels, "scale": args.scale, "version": getattr(pkg, "__version__", "")}
+        model.save_skeleton(os.path.join(args.out, "skeleton.npz"), res.skeleton, meta)
+        if args.npz:
+            arrays = model.skeleton_arrays(res.skeleton, meta)
+            model.atomic_savez(os.path.join(args.out, "result.npz"), **arrays)
+        overlay.write_overlays(res.info, res.start, res.skeleton, res.tracks,
+                               os.path.join(args.out, "overlay.png"),
+                               None if args.no_video else os.path.join(args.out, "overlay.mp4"), cb)
+        sys.stderr.write(f"done: {res.skeleton.n_nodes} nodes, {res.tracks.points.shape[1]} tracks, "
+                         f"{res.tracks.n_frames} frames -> {args.out}\n")
+        return 0
+    except errors.InputError as exc:
+        sys.stderr.write(f"error: {exc}\n")
+        return 2
+    except errors.Cancelled as exc:
+        sys.stderr.write(f"cancelled: {exc}\n")
+        return 1
+    except Exception:  # internal error: keep the traceback for the bug report
+        traceback.print_exc()
+        sys.stderr.write("internal error: please report it with the traceback above\n")
+        return 1
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:] if "--" not in sys.argv else sys.argv[sys.argv.index("--") + 1:]))

@@ -1,0 +1,73 @@
+"""Benchmark: a generated 1280×720, 300-frame video — decode-only vs the stages, traced and paper.
+
+    .venv/bin/python benchmarks/bench_skeleton.py [--width 1280 --height 720 --frames 300]
+
+Prints seconds per stage and the ratio of the whole run to decode-only (target: ≤ 3×).
+"""
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import os
+import sys
+import tempfile
+import time
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+def _load_package():
+    spec = importlib.util.spec_from_file_location("tree_from_video", os.path.join(ROOT, "__init__.py"),
+                                                  submodule_search_locations=[ROOT])
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules["tree_from_video"] = mod
+    spec.loader.exec_module(mod)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--width", type=int, default=1280)
+    ap.add_argument("--height", type=int, default=720)
+    ap.add_argument("--frames", type=int, default=300)
+    ap.add_argument("--variant", default="broad")
+    args = ap.parse_args()
+    _load_package()
+    from tree_from_video.core import hierarchy, pipeline, skeleton2d, trace, video
+    from tree_from_video.core.outline import load_outline
+    from tree_from_video.sample_videos import synth_tree
+
+    with tempfile.TemporaryDirectory() as tmp:
+        t = time.perf_counter()
+        cfg = synth_tree.config_for(args.variant, width=args.width, height=args.height, frames=args.frames)
+        synth_tree.generate(cfg, tmp)
+        print(f"generate video: {time.perf_counter() - t:.1f} s (not part of the ratio)")
+        path = os.path.join(tmp, "video.mp4")
+        info = video.open_video(path)
+        t = time.perf_counter()
+        n = sum(1 for _ in video.iter_frames(info))
+        decode = time.perf_counter() - t
+        outline = load_outline(os.path.join(tmp, "outline.json"), info.width, info.height)
+        t = time.perf_counter()
+        tracks, maps = pipeline.track_video(info, outline, 0, info.frame_count, pipeline.TrackParams())
+        t_track = time.perf_counter() - t
+        t = time.perf_counter()
+        hier = hierarchy.build_hierarchy(tracks)
+        t_hier = time.perf_counter() - t
+        t = time.perf_counter()
+        skeleton2d.paper_skeleton(tracks, hier, outline)
+        t_paper = time.perf_counter() - t
+        t = time.perf_counter()
+        trace.traced_skeleton(tracks, hier, outline, maps)
+        t_traced = time.perf_counter() - t
+    print(f"video: {info.width}x{info.height}, {n} frames, {tracks.points.shape[1]} tracks")
+    print(f"{'stage':<22}{'seconds':>9}")
+    for name, v in (("decode only", decode), ("tracking (+decode)", t_track), ("hierarchy", t_hier),
+                    ("skeleton paper", t_paper), ("skeleton traced", t_traced)):
+        print(f"{name:<22}{v:9.2f}")
+    for kind, sk in (("traced", t_traced), ("paper", t_paper)):
+        whole = t_track + t_hier + sk
+        print(f"whole/decode ({kind}): {whole / decode:.2f}x  (target <= 3x)")
+
+
+if __name__ == "__main__":
+    main()

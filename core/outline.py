@@ -1,0 +1,104 @@
+"""Stage 2 — the user's outline of the tree in frame 1, as a polygon and a mask.
+
+Accepted inputs: a JSON file holding a list of ``[x, y]`` pixel vertices (or an object with a
+``"polygon"`` key holding that list), or a mask image (any non-zero pixel is inside).
+"""
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from .errors import InputError
+
+MIN_AREA_PX = 64.0  # smaller outlines cannot hold a tree's worth of corners
+
+
+@dataclass
+class Outline:
+    """``polygon (M, 2)`` float32 pixels (x right, y down); ``mask (H, W)`` bool, True inside."""
+
+    polygon: np.ndarray
+    mask: np.ndarray
+
+    @property
+    def bbox(self) -> tuple[int, int, int, int]:
+        """``(x0, y0, x1, y1)`` pixel bounds of the mask (inclusive-exclusive)."""
+        ys, xs = np.nonzero(self.mask)
+        return int(xs.min()), int(ys.min()), int(xs.max()) + 1, int(ys.max()) + 1
+
+
+def polygon_to_mask(polygon: np.ndarray, width: int, height: int) -> np.ndarray:
+    """Fill ``polygon (M, 2)`` pixels into a ``(height, width)`` bool mask."""
+    mask = np.zeros((height, width), np.uint8)
+    cv2.fillPoly(mask, [np.round(polygon).astype(np.int32).reshape(-1, 1, 2)], 1)
+    return mask.astype(bool)
+
+
+def _read_polygon(path: str) -> np.ndarray:
+    try:
+        with open(path, encoding="utf-8") as fh:
+            data = json.load(fh)
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise InputError(f"outline '{path}' is not readable JSON ({exc.__class__.__name__}); "
+                         "give a JSON list of [x, y] pixel points or a mask PNG") from None
+    if isinstance(data, dict):
+        data = data.get("polygon", data.get("points"))
+    try:
+        poly = np.asarray(data, dtype=np.float64)
+    except (TypeError, ValueError):
+        poly = np.zeros((0,))
+    if poly.ndim != 2 or poly.shape[1] != 2 or not np.all(np.isfinite(poly)):
+        raise InputError(f"outline '{path}' does not hold a list of [x, y] points; "
+                         "write it as [[x1, y1], [x2, y2], ...] in pixels of frame 1")
+    return poly
+
+
+def _mask_to_polygon(mask: np.ndarray) -> np.ndarray:
+    contours, _ = cv2.findContours(mask.astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+    if not contours:
+        return np.zeros((0, 2))
+    return max(contours, key=cv2.contourArea).reshape(-1, 2).astype(np.float64)
+
+
+def load_outline(path: str | os.PathLike, width: int, height: int, scale: float = 1.0) -> Outline:
+    """Read a polygon JSON or mask image for a ``width`` x ``height`` frame (after ``scale``).
+
+    Polygon coordinates are in pixels of the original video and are multiplied by ``scale``; a
+    mask image of another size is resized to the frame. Raises :class:`InputError` when the outline
+    is missing, empty, degenerate (fewer than 3 points or under 64 px²) or outside the frame.
+    """
+    path = os.fspath(path)
+    if not os.path.isfile(path):
+        raise InputError(f"outline '{path}' does not exist; give a polygon .json or a mask .png")
+    if path.lower().endswith(".json"):
+        poly = _read_polygon(path) * scale
+        if len(poly) < 3:
+            raise InputError(f"outline '{path}' has {len(poly)} point(s); draw at least 3 around the tree")
+        mask = polygon_to_mask(poly, width, height)
+    else:
+        img = cv2.imread(path, cv2.IMREAD_GRAYSCALE)
+        if img is None:
+            raise InputError(f"outline '{path}' is neither JSON nor a readable image; "
+                             "give a polygon .json or a black/white mask .png")
+        if img.shape != (height, width):
+            img = cv2.resize(img, (width, height), interpolation=cv2.INTER_NEAREST)
+        mask = img > 0
+        poly = _mask_to_polygon(mask)
+        if not mask.any():
+            raise InputError(f"outline mask '{path}' is empty (all black); paint the tree white")
+    area = float(mask.sum())
+    if area == 0 and len(poly) >= 3:
+        raise InputError(f"outline '{path}' lies outside the {width}x{height} frame; "
+                         "give coordinates in pixels of the video's first frame")
+    if area < MIN_AREA_PX:
+        raise InputError(f"outline '{path}' is degenerate (area {area:.0f} px²); "
+                         "draw a polygon around the whole tree")
+    poly_area = abs(cv2.contourArea(poly.astype(np.float32))) if len(poly) >= 3 else area
+    if poly_area > 0 and area < 0.5 * poly_area:
+        raise InputError(f"outline '{path}' lies mostly outside the {width}x{height} frame "
+                         f"({100 * area / poly_area:.0f}% inside); use pixels of the first frame")
+    return Outline(poly.astype(np.float32), mask)

@@ -1,0 +1,199 @@
+"""Stage 5 — the moving 2D skeleton.
+
+Two ways to place the nodes in frame 1 share the same node motion:
+
+* ``paper`` (Appendix A): nodes at the hierarchy's cluster centroids, a trunk base added at the
+  bottom of the outline, children folded toward parents root to tip:
+  ``x'_i ← x'_i + α (x'_j − x'_i)`` (α = 0.4), stopping at the second-last level.
+* ``traced`` (default, :mod:`.trace`): the branches traced in the image, with the hierarchy's
+  clusters attached through the crown.
+
+Node motion: every node follows the valid tracks near it, distance-weighted and chained frame to
+frame, so a node keeps moving when its own tracks are lost.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from .hierarchy import Hierarchy
+from .outline import Outline
+from .progress import ProgressFn, report
+from .tracks import Tracks
+
+FOLD_ALPHA = 0.4
+
+
+@dataclass
+class Skeleton2D:
+    """A binary tree of 2D nodes moving over the clip.
+
+    ``parents (N,)`` int32, -1 for the root (node 0, the trunk base); ``nodes2d (F, N, 2)``
+    float32 pixels in frame-1 coordinates; ``level (N,)`` int32 branching order (0 on the trunk,
+    +1 after every bifurcation); ``fps`` frames per second; ``kind`` "traced" or "paper".
+    """
+
+    parents: np.ndarray
+    nodes2d: np.ndarray
+    level: np.ndarray
+    fps: float
+    kind: str = "traced"
+    warnings: list[str] = field(default_factory=list)
+
+    @property
+    def n_nodes(self) -> int:
+        return len(self.parents)
+
+    def edges(self) -> np.ndarray:
+        """``(N-1, 2)`` (parent, child) index pairs."""
+        c = np.flatnonzero(self.parents >= 0)
+        return np.stack([self.parents[c], c], axis=1)
+
+
+def children_lists(parents: np.ndarray) -> list[list[int]]:
+    """Children of every node, in index order."""
+    ch: list[list[int]] = [[] for _ in parents]
+    for c, p in enumerate(parents):
+        if p >= 0:
+            ch[p].append(c)
+    return ch
+
+
+def topological_order(parents: np.ndarray) -> np.ndarray:
+    """Node indices root first, every parent before its children (breadth first)."""
+    ch = children_lists(parents)
+    order = [int(r) for r in np.flatnonzero(parents < 0)]
+    i = 0
+    while i < len(order):
+        order.extend(ch[order[i]])
+        i += 1
+    return np.array(order, int)
+
+
+def branching_level(parents: np.ndarray) -> np.ndarray:
+    """Branching order per node: 0 on the trunk, +1 below every node with two or more children."""
+    ch = children_lists(parents)
+    level = np.zeros(len(parents), np.int32)
+    for n in topological_order(parents):
+        p = parents[n]
+        if p >= 0:
+            level[n] = level[p] + (1 if len(ch[p]) >= 2 else 0)
+    return level
+
+
+def binarize(parents: np.ndarray, pos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Turn every node with k > 2 children into a chain of binary splits.
+
+    ``pos (N, 2)``. The node keeps its nearest child; the others hang from a new node placed a
+    quarter of the way toward the nearest of them, repeated until every node has ≤ 2 children.
+    Returns new ``(parents, pos)``; original nodes keep their indices, new ones are appended.
+    """
+    parents = [int(p) for p in parents]
+    pos = [np.asarray(p, float) for p in pos]
+    ch = children_lists(np.array(parents))
+    stack = list(range(len(parents)))
+    while stack:
+        u = stack.pop()
+        kids = ch[u] if u < len(ch) else []
+        if len(kids) <= 2:
+            continue
+        d = [np.linalg.norm(pos[k] - pos[u]) for k in kids]
+        kids = [kids[i] for i in np.argsort(d)]
+        keep, rest = kids[0], kids[1:]
+        v = len(parents)
+        parents.append(u)
+        pos.append(pos[u] + 0.25 * (pos[rest[0]] - pos[u]))
+        for k in rest:
+            parents[k] = v
+        ch[u] = [keep, v]
+        ch.append(rest)
+        stack.append(v)
+    return np.array(parents, np.int32), np.array(pos)
+
+
+def fold(pos: np.ndarray, parents: np.ndarray, level: np.ndarray, alpha: float = FOLD_ALPHA,
+         stop_level: int | None = None) -> np.ndarray:
+    """Paper's folding: root to tip, ``x'_i ← x'_i + α (x'_j − x'_i)`` with j the parent.
+
+    Applied to nodes with ``1 <= level <= stop_level`` (default: the second-last level, so the
+    finest level keeps its centroids and the skeleton does not shrink). Parents are folded first,
+    so children fold toward their parent's *folded* position. ``pos (N, 2)``.
+    """
+    out = np.array(pos, float)
+    stop = int(level.max()) - 1 if stop_level is None else stop_level
+    for n in topological_order(parents):
+        p = parents[n]
+        if p >= 0 and 1 <= level[n] <= stop:
+            out[n] += alpha * (out[p] - out[n])
+    return out
+
+
+def outline_base(outline: Outline) -> np.ndarray:
+    """Trunk base guess: bottom-most row of the outline, at the mid-point of its extent (px)."""
+    ys, xs = np.nonzero(outline.mask)
+    y = ys.max()
+    row = xs[ys >= y - 2]
+    return np.array([0.5 * (row.min() + row.max()), float(y)])
+
+
+def node_motion(nodes0: np.ndarray, tracks: Tracks, scale: float, fixed: np.ndarray | None = None,
+                k: int = 40) -> np.ndarray:
+    """Move nodes with nearby tracks: ``(N, 2)`` frame-1 positions → ``(F, N, 2)`` pixels.
+
+    Per frame, a node's step is the weighted mean of the steps of tracks valid in both frames,
+    weights ``exp(-d² / 2s²)`` on frame-1 distance d with s = ``scale`` px among its k nearest
+    tracks; where those are all lost a wider neighbourhood (4s) is used, and the steps are summed
+    over frames (chained). ``fixed (N,)`` bool marks nodes that never move (the trunk base).
+    """
+    F, P = tracks.points.shape[:2]
+    N = len(nodes0)
+    out = np.repeat(nodes0[None].astype(np.float64), F, axis=0)
+    if P == 0 or F < 2:
+        return out.astype(np.float32)
+    tree = cKDTree(tracks.points[0])
+    kk = min(k * 4, P)
+    dist, idx = tree.query(nodes0, k=kk)
+    dist, idx = dist.reshape(N, kk), idx.reshape(N, kk)
+    steps = tracks.points[1:] - tracks.points[:-1]                 # (F-1, P, 2)
+    both = tracks.valid[1:] & tracks.valid[:-1]                     # (F-1, P)
+    steps = np.where(both[..., None], steps, 0.0).astype(np.float64)
+    move = np.zeros((F - 1, N, 2))
+    have = np.zeros((F - 1, N), bool)
+    for s, kn in ((scale, min(k, P)), (4 * scale, kk)):
+        w = np.exp(-dist[:, :kn] ** 2 / (2 * s * s))                 # (N, kn)
+        st = steps[:, idx[:, :kn]]                                  # (F-1, N, kn, 2)
+        va = both[:, idx[:, :kn]]                                   # (F-1, N, kn)
+        den = (va * w).sum(-1)
+        num = (st * w[..., None]).sum(-2)
+        ok = (den > 1e-6) & ~have
+        move[ok] = num[ok] / den[ok][:, None]
+        have |= ok
+    if fixed is not None:
+        move[:, fixed] = 0.0
+    out[1:] += np.cumsum(move, axis=0)
+    return out.astype(np.float32)
+
+
+def crown_scale(outline: Outline) -> float:
+    """Tree size in px: the larger side of the outline's bounding box."""
+    x0, y0, x1, y1 = outline.bbox
+    return float(max(x1 - x0, y1 - y0))
+
+
+def paper_skeleton(tracks: Tracks, hier: Hierarchy, outline: Outline, alpha: float = FOLD_ALPHA,
+                   progress: ProgressFn | None = None) -> Skeleton2D:
+    """Paper-faithful skeleton: centroids, a trunk base, folding (see module docstring)."""
+    p0 = tracks.points[0]
+    cent = np.array([p0[m].mean(0) if len(m) else p0.mean(0) for m in hier.members])
+    # node 0: trunk base; node c+1: cluster c
+    parents = np.concatenate([[-1], np.where(hier.parent < 0, 0, hier.parent + 1)]).astype(np.int32)
+    cent = fold(cent, hier.parent, hier.level, alpha)   # hierarchy levels: root cluster 0 is not moved
+    pos = np.vstack([outline_base(outline), cent])
+    report(progress, "skeleton", 0.5)
+    fixed = np.zeros(len(parents), bool)
+    fixed[0] = True
+    nodes = node_motion(pos, tracks, 0.04 * crown_scale(outline), fixed)
+    report(progress, "skeleton", 1.0)
+    return Skeleton2D(parents, nodes, branching_level(parents), tracks.fps, "paper")

@@ -1,0 +1,218 @@
+"""Stage 3 — Harris corners inside the outline, tracked with pyramidal Lucas–Kanade.
+
+The tracker is fed one frame at a time (the pipeline streams the video once). Global camera
+motion is estimated from features *outside* the outline and removed, so every position in
+:class:`Tracks` is in frame-1 pixel coordinates. Lost points stay in the arrays and are marked
+invalid (never silently dropped); once lost, a track stays invalid.
+"""
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+
+from .outline import Outline
+
+LK_PARAMS = dict(winSize=(15, 15), maxLevel=3,
+                 criteria=(cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 30, 0.01))
+
+
+@dataclass
+class TrackParams:
+    """Tracking settings. Distances in pixels."""
+
+    max_corners: int = 3000
+    quality: float = 0.0002       # Harris response relative to the strongest corner
+    min_distance: float = 3.0     # px between corners
+    fb_max_error: float = 1.0     # px forward–backward disagreement that marks a point lost
+    outlier_frac: float = 0.06    # of crown size: motion beyond neighbours' that marks an outlier
+    neighbours: int = 8           # tracks compared against for the outlier test
+    stabilize: bool = True        # remove camera motion using features outside the outline
+
+
+@dataclass
+class Tracks:
+    """Tracked Harris corners.
+
+    ``points (F, P, 2)`` float32 pixels in frame-1 coordinates (camera motion removed);
+    ``valid (F, P)`` bool; ``camera (F, 2, 3)`` float32 affine maps from each frame's image to
+    frame 1; ``intensity (P,)`` float32 grey level 0..255 at each corner in frame 1;
+    ``fps`` frames per second; ``start`` first frame index of the range; ``size`` (width, height).
+    """
+
+    points: np.ndarray
+    valid: np.ndarray
+    camera: np.ndarray
+    intensity: np.ndarray
+    fps: float
+    start: int
+    size: tuple[int, int]
+    warnings: list[str] = field(default_factory=list)
+
+    @property
+    def n_frames(self) -> int:
+        return self.points.shape[0]
+
+    def displacement(self) -> np.ndarray:
+        """``(F, P, 2)`` pixels moved since frame 1, NaN where invalid."""
+        d = self.points - self.points[:1]
+        return np.where(self.valid[..., None], d, np.nan)
+
+    def sway_px(self) -> float:
+        """Typical sway: median over tracks of the std of their displacement (pixels)."""
+        d = self.displacement()
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            s = np.nanstd(d, axis=0)
+        s = np.sqrt(np.nansum(s ** 2, axis=-1))
+        ok = self.valid.sum(0) >= 3
+        return float(np.median(s[ok])) if ok.any() else 0.0
+
+
+def detect_corners(gray: np.ndarray, mask: np.ndarray, params: TrackParams) -> np.ndarray:
+    """Harris corners ``(P, 2)`` float32 inside ``mask`` (``cv2.goodFeaturesToTrack``)."""
+    pts = cv2.goodFeaturesToTrack(gray, maxCorners=params.max_corners, qualityLevel=params.quality,
+                                  minDistance=params.min_distance, mask=mask.astype(np.uint8),
+                                  blockSize=3, useHarrisDetector=True, k=0.04)
+    return np.zeros((0, 2), np.float32) if pts is None else pts.reshape(-1, 2).astype(np.float32)
+
+
+def lk_forward_backward(prev: np.ndarray, cur: np.ndarray, pts: np.ndarray,
+                        max_error: float) -> tuple[np.ndarray, np.ndarray]:
+    """Track ``pts (P, 2)`` from ``prev`` to ``cur`` grey images; returns new points and ok (P,)."""
+    if len(pts) == 0:
+        return pts.copy(), np.zeros(0, bool)
+    p0 = pts.reshape(-1, 1, 2)
+    p1, st1, _ = cv2.calcOpticalFlowPyrLK(prev, cur, p0, None, **LK_PARAMS)
+    p0r, st2, _ = cv2.calcOpticalFlowPyrLK(cur, prev, p1, None, **LK_PARAMS)
+    fb = np.linalg.norm((p0r - p0).reshape(-1, 2), axis=1)
+    ok = (st1.ravel() == 1) & (st2.ravel() == 1) & (fb < max_error)
+    return p1.reshape(-1, 2), ok
+
+
+def _to_affine3(m: np.ndarray) -> np.ndarray:
+    return np.vstack([m, [0.0, 0.0, 1.0]])
+
+
+def apply_affine(m: np.ndarray, pts: np.ndarray) -> np.ndarray:
+    """Apply a ``(2, 3)`` affine to ``pts (..., 2)``."""
+    return pts @ m[:, :2].T + m[:, 2]
+
+
+class CameraEstimator:
+    """Tracks background corners (outside the outline) and estimates image→frame-1 affines."""
+
+    def __init__(self, gray0: np.ndarray, tree_mask: np.ndarray, params: TrackParams):
+        h, w = gray0.shape
+        pad = max(3, int(0.02 * max(h, w)))
+        bg = ~cv2.dilate(tree_mask.astype(np.uint8), np.ones((2 * pad + 1,) * 2, np.uint8)).astype(bool)
+        bg[:pad], bg[-pad:], bg[:, :pad], bg[:, -pad:] = False, False, False, False
+        self.bg_mask = bg
+        self.params = params
+        self.pts = self._detect(gray0)
+        self.ref = self.pts.copy()          # the same points in frame-1 coordinates
+        self.current = np.array([[1.0, 0, 0], [0, 1.0, 0]])
+        self.available = len(self.pts) >= 8
+
+    def _detect(self, gray: np.ndarray) -> np.ndarray:
+        pts = cv2.goodFeaturesToTrack(gray, maxCorners=400, qualityLevel=0.01, minDistance=8,
+                                      mask=self.bg_mask.astype(np.uint8), blockSize=5)
+        return np.zeros((0, 2), np.float32) if pts is None else pts.reshape(-1, 2).astype(np.float32)
+
+    def update(self, prev: np.ndarray, cur: np.ndarray) -> np.ndarray:
+        """Estimate the ``(2, 3)`` affine mapping ``cur`` image coordinates to frame 1."""
+        if not self.available:
+            return self.current
+        new, ok = lk_forward_backward(prev, cur, self.pts, self.params.fb_max_error)
+        if ok.sum() >= 8:
+            m, inl = cv2.estimateAffinePartial2D(new[ok], self.ref[ok], method=cv2.RANSAC,
+                                                 ransacReprojThreshold=1.0, maxIters=2000, confidence=0.99)
+            if m is not None:
+                self.current = m
+        self.pts, self.ref = new[ok], self.ref[ok]
+        if len(self.pts) < 100:   # refill: new corners get frame-1 coordinates through the estimate
+            fresh = self._detect(cur)
+            self.pts = np.vstack([self.pts, fresh]).astype(np.float32)
+            self.ref = np.vstack([self.ref, apply_affine(self.current, fresh)]).astype(np.float32)
+        return self.current
+
+
+class Tracker:
+    """Streaming tracker: ``Tracker(frame0, outline)``, then ``feed(frame)`` per frame, ``result()``."""
+
+    def __init__(self, frame0: np.ndarray, outline: Outline, fps: float, start: int = 0,
+                 params: TrackParams | None = None):
+        self.params = params or TrackParams()
+        gray = cv2.cvtColor(frame0, cv2.COLOR_BGR2GRAY)
+        self.prev = gray
+        pts = detect_corners(gray, outline.mask, self.params)
+        self.fps, self.start, self.size = fps, start, (gray.shape[1], gray.shape[0])
+        x0, y0, x1, y1 = outline.bbox
+        self.crown = float(max(x1 - x0, y1 - y0))
+        self.raw = pts.copy()                       # current image positions
+        self.points = [pts.copy()]
+        self.valid = [np.ones(len(pts), bool)]
+        self.camera = [np.array([[1.0, 0, 0], [0, 1.0, 0]])]
+        self.intensity = gray[np.clip(pts[:, 1].round().astype(int), 0, gray.shape[0] - 1),
+                              np.clip(pts[:, 0].round().astype(int), 0, gray.shape[1] - 1)].astype(np.float32)
+        self.cam = CameraEstimator(gray, outline.mask, self.params) if self.params.stabilize else None
+        self.alive = np.ones(len(pts), bool)
+        self.nbr = self._neighbours(pts)
+
+    def _neighbours(self, pts: np.ndarray) -> np.ndarray:
+        k = min(self.params.neighbours, max(len(pts) - 1, 0))
+        if k == 0:
+            return np.zeros((len(pts), 0), int)
+        from scipy.spatial import cKDTree
+        _, idx = cKDTree(pts).query(pts, k=k + 1)
+        return idx[:, 1:]
+
+    def feed(self, frame: np.ndarray) -> None:
+        """Track every live point into ``frame`` (BGR uint8)."""
+        gray = cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY)
+        cam = self.cam.update(self.prev, gray) if self.cam is not None else self.camera[0]
+        new, ok = lk_forward_backward(self.prev, gray, self.raw, self.params.fb_max_error)
+        self.alive &= ok
+        self.raw = np.where(self.alive[:, None], new, self.raw).astype(np.float32)
+        stab = apply_affine(cam, self.raw).astype(np.float32)
+        self._reject_outliers(stab)
+        self.points.append(stab)
+        self.valid.append(self.alive.copy())
+        self.camera.append(np.asarray(cam, float))
+        self.prev = gray
+
+    def _reject_outliers(self, stab: np.ndarray) -> None:
+        """Kill tracks that move far more than their spatial neighbours or beyond the crown."""
+        if self.nbr.shape[1] == 0:
+            return
+        disp = stab - self.points[0]
+        d_n = np.where(self.alive[self.nbr][..., None], disp[self.nbr], np.nan)
+        if d_n.size == 0:
+            return
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)   # all-NaN rows: no live neighbour
+            med = np.nanmedian(d_n, axis=1)
+        resid = np.linalg.norm(disp - np.nan_to_num(med), axis=1)
+        far = np.linalg.norm(disp, axis=1) > 0.5 * self.crown
+        bad = (resid > self.params.outlier_frac * self.crown) | far
+        self.alive &= ~bad
+
+    def result(self) -> Tracks:
+        """All frames fed so far as :class:`Tracks` (with a warning when the tree barely moves)."""
+        tr = Tracks(np.stack(self.points).astype(np.float32), np.stack(self.valid),
+                    np.stack(self.camera).astype(np.float32), self.intensity, self.fps, self.start,
+                    self.size)
+        if tr.points.shape[1] == 0:
+            tr.warnings.append("no corners found inside the outline; check that it surrounds the tree")
+        elif tr.n_frames > 2:
+            sway = tr.sway_px()
+            if sway < 0.5:
+                tr.warnings.append(
+                    f"the tree barely moves (median sway {sway:.2f} px); the hierarchy leans on "
+                    "position, motion will be faint — a windier clip gives a better model")
+        if self.cam is not None and not self.cam.available:
+            tr.warnings.append("too little background outside the outline to remove camera motion; "
+                               "use a tripod clip or leave some background in frame")
+        return tr

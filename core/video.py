@@ -1,0 +1,105 @@
+"""Stage 1 — video reading: stream frames, never the whole clip in memory.
+
+Frames come out as ``(H, W, 3)`` uint8 BGR arrays (OpenCV order), optionally downscaled by
+``scale`` (0 < scale <= 1). Frame indices are 0-based; a range is ``[start, stop)``.
+"""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from typing import Iterator
+
+import cv2
+import numpy as np
+
+from .errors import InputError
+
+
+@dataclass(frozen=True)
+class VideoInfo:
+    """What a video file holds. ``width``/``height`` in pixels after ``scale``; ``fps`` frames/s."""
+
+    path: str
+    width: int
+    height: int
+    fps: float
+    frame_count: int
+    scale: float = 1.0
+
+
+def parse_frame_range(text: str | None, frame_count: int) -> tuple[int, int]:
+    """``"A:B"`` (0-based, B exclusive, either side may be empty) -> ``(start, stop)`` clipped."""
+    if text is None or text.strip() in ("", ":"):
+        return 0, frame_count
+    parts = text.split(":")
+    if len(parts) != 2:
+        raise InputError(f"frame range '{text}' is not A:B; write e.g. --frames 0:120")
+    try:
+        start = int(parts[0]) if parts[0].strip() else 0
+        stop = int(parts[1]) if parts[1].strip() else frame_count
+    except ValueError:
+        raise InputError(f"frame range '{text}' is not two integers A:B; write e.g. --frames 0:120") from None
+    stop = min(stop, frame_count)
+    if start < 0 or stop - start < 2:
+        raise InputError(
+            f"frame range '{text}' leaves {max(stop - start, 0)} frame(s) of {frame_count}; "
+            "give at least 2 frames, e.g. --frames 0:120")
+    return start, stop
+
+
+def open_video(path: str | os.PathLike, scale: float = 1.0) -> VideoInfo:
+    """Probe ``path``; raise :class:`InputError` for a missing, unreadable or empty file."""
+    path = os.fspath(path)
+    if not os.path.exists(path):
+        raise InputError(f"video '{path}' does not exist; check the path")
+    if os.path.isdir(path):
+        raise InputError(f"video '{path}' is a folder; give a video file (mp4, mov, avi)")
+    if not 0.0 < scale <= 1.0:
+        raise InputError(f"scale {scale} is out of range; use a value in (0, 1]")
+    cap = cv2.VideoCapture(path)
+    try:
+        ok, frame = cap.read() if cap.isOpened() else (False, None)
+        if not ok or frame is None:
+            raise InputError(
+                f"video '{path}' cannot be read (unsupported codec or not a video, or it has no frames); "
+                "convert it to H.264/MP4, e.g. ffmpeg -i IN -c:v libx264 OUT.mp4")
+        fps = float(cap.get(cv2.CAP_PROP_FPS)) or 0.0
+        count = int(cap.get(cv2.CAP_PROP_FRAME_COUNT))
+    finally:
+        cap.release()
+    if not np.isfinite(fps) or fps <= 0 or fps > 1000:
+        fps = 24.0
+    if count <= 0:
+        count = sum(1 for _ in _raw_frames(path))
+    h, w = frame.shape[:2]
+    return VideoInfo(path, int(round(w * scale)), int(round(h * scale)), fps, count, scale)
+
+
+def _raw_frames(path: str) -> Iterator[np.ndarray]:
+    cap = cv2.VideoCapture(path)
+    try:
+        while True:
+            ok, frame = cap.read()
+            if not ok:
+                return
+            yield frame
+    finally:
+        cap.release()
+
+
+def iter_frames(info: VideoInfo, start: int = 0, stop: int | None = None) -> Iterator[np.ndarray]:
+    """Yield BGR frames ``start..stop-1`` (``(H, W, 3)`` uint8, scaled), one at a time."""
+    stop = info.frame_count if stop is None else stop
+    cap = cv2.VideoCapture(info.path)
+    try:
+        if start > 0:
+            cap.set(cv2.CAP_PROP_POS_FRAMES, start)
+        for _ in range(start, stop):
+            ok, frame = cap.read()
+            if not ok:
+                return
+            if info.scale != 1.0:
+                frame = cv2.resize(frame, (info.width, info.height), interpolation=cv2.INTER_AREA)
+            yield frame
+    finally:
+        cap.release()

@@ -1,0 +1,55 @@
+"""Operator: video + outline → 2D skeleton file (blocking; the modal version comes with the panel)."""
+import os
+
+import bpy
+
+from ..core import model, pipeline
+from ..core.errors import InputError
+
+
+class TREE_OT_trace_skeleton(bpy.types.Operator):
+    """Track the video and build the moving 2D skeleton, saved as skeleton.npz in the output folder"""
+
+    bl_idname = "tree_video.trace_skeleton"
+    bl_label = "Trace 2D Skeleton"
+    bl_options = {"REGISTER"}
+
+    @classmethod
+    def poll(cls, context):
+        props = getattr(context.scene, "tree_video", None)
+        return props is not None and bool(props.video_path) and bool(props.outline_path)
+
+    def execute(self, context):
+        props = context.scene.tree_video
+        out = bpy.path.abspath(props.output_dir)
+        settings = pipeline.Settings(levels=props.levels, skeleton=props.skeleton_kind)
+        try:
+            res = pipeline.run(bpy.path.abspath(props.video_path), bpy.path.abspath(props.outline_path), settings)
+            os.makedirs(out, exist_ok=True)
+            path = os.path.join(out, "skeleton.npz")
+            if os.path.exists(path) and not props.overwrite:
+                raise InputError(f"{path} exists; tick Overwrite or choose another output folder")
+            model.save_skeleton(path, res.skeleton)
+        except InputError as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        except OSError as exc:
+            self.report({"ERROR"}, f"cannot write to '{out}' ({exc.strerror}); choose another output folder")
+            return {"CANCELLED"}
+        for w in res.warnings:
+            self.report({"WARNING"}, w)
+        self.report({"INFO"}, f"{res.skeleton.n_nodes} nodes over {res.tracks.n_frames} frames → {path}")
+        return {"FINISHED"}
+
+
+classes = (TREE_OT_trace_skeleton,)
+
+
+def register():
+    for c in classes:
+        bpy.utils.register_class(c)
+
+
+def unregister():
+    for c in reversed(classes):
+        bpy.utils.unregister_class(c)

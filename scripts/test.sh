@@ -1,0 +1,11 @@
+#!/usr/bin/env bash
+# The whole test suite: pytest on the bpy 5.0.1 wheel (Python 3.11, numpy 1.26), then the core and
+# add-on registration inside a real Blender 4.3 (Python 3.13, numpy 2.x). pytest's exit 5 (no tests
+# collected) counts as a failure.
+set -uo pipefail
+cd "$(dirname "$0")/.."
+.venv/bin/python -m pytest -q -rs tests "$@"
+rc=$?
+if [ $rc -eq 5 ]; then echo "test: pytest collected no tests" >&2; exit 1; fi
+[ $rc -eq 0 ] || exit $rc
+bash scripts/test_blender.sh

@@ -1,0 +1,89 @@
+"""Scoring a 2D skeleton against a synthetic video's ground truth (``truth.npz``).
+
+All distances are in pixels of frame 1 and normalized by the true tree height.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+
+def sample_edges(nodes: np.ndarray, parents: np.ndarray, step: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+    """Points every ``step`` px along every (parent, child) edge of ``nodes (N, 2)``; also their weights (px)."""
+    c = np.flatnonzero(parents >= 0)
+    a, b = nodes[parents[c]], nodes[c]
+    length = np.linalg.norm(b - a, axis=1)
+    n = np.maximum(1, np.ceil(length / step).astype(int))
+    seg = np.repeat(np.arange(len(c)), n)
+    offs = np.concatenate([(np.arange(k) + 0.5) / k for k in n])
+    pts = a[seg] + (b - a)[seg] * offs[:, None]
+    w = (length / n)[seg]
+    return pts, w
+
+
+def chamfer_coverage(skel_nodes, skel_parents, true_nodes, true_parents, height, cover_tol=0.03):
+    """(symmetric chamfer / height, share of true branch length within ``cover_tol``·height)."""
+    sp_, _ = sample_edges(skel_nodes, skel_parents)
+    tp, tw = sample_edges(true_nodes, true_parents)
+    if len(sp_) == 0:
+        return 1.0, 0.0
+    d_ts = cKDTree(sp_).query(tp)[0]
+    d_st = cKDTree(tp).query(sp_)[0]
+    chamfer = 0.5 * (np.average(d_ts, weights=tw) + d_st.mean()) / height
+    coverage = float(np.sum(tw[d_ts <= cover_tol * height]) / tw.sum())
+    return float(chamfer), coverage
+
+
+def dominant_frequency(x: np.ndarray, fps: float) -> float:
+    """Frequency (Hz) of the largest FFT peak of ``x (F,)`` (mean removed, Hann window, parabolic refinement)."""
+    x = np.asarray(x, float) - np.mean(x)
+    n = len(x)
+    pad = 8 * n
+    spec = np.abs(np.fft.rfft(x * np.hanning(n), pad))
+    spec[0] = 0
+    k = int(np.argmax(spec))
+    if 0 < k < len(spec) - 1:
+        a, b, c = spec[k - 1:k + 2]
+        denom = a - 2 * b + c
+        if denom < 0:
+            k = k + 0.5 * (a - c) / denom
+    return float(k * fps / pad)
+
+
+@dataclass
+class Score:
+    chamfer1: float       # frame-1 chamfer / height
+    chamfer_all: float    # mean over frames
+    coverage: float       # frame-1 coverage
+    tip_corr: float       # median Pearson of x displacement of matched tips
+    freq_err: float       # median |Δf| Hz of matched tips' dominant sway frequency
+    n_nodes: int
+
+
+def score(skel_parents, skel_nodes2d, truth, frame_step: int = 4) -> Score:
+    """Compare a skeleton (``parents (N,)``, ``nodes2d (F, N, 2)``) to a truth npz dict."""
+    tn = truth["nodes2d"]
+    tpar = truth["parents"]
+    h = float(truth["height_px"])
+    fps = float(truth["fps"])
+    F = min(len(tn), len(skel_nodes2d))
+    c1, cov = chamfer_coverage(skel_nodes2d[0], skel_parents, tn[0], tpar, h)
+    call = np.mean([chamfer_coverage(skel_nodes2d[t], skel_parents, tn[t], tpar, h)[0]
+                    for t in range(0, F, frame_step)])
+    has_child = np.zeros(len(skel_parents), bool)
+    has_child[skel_parents[skel_parents >= 0]] = True
+    tips = np.flatnonzero(~has_child)
+    _, match = cKDTree(tn[0]).query(skel_nodes2d[0, tips])
+    corrs, ferrs = [], []
+    for s, t in zip(tips, match):
+        xs = skel_nodes2d[:F, s, 0] - skel_nodes2d[0, s, 0]
+        xt = tn[:F, t, 0] - tn[0, t, 0]
+        if np.std(xs) < 1e-9 or np.std(xt) < 1e-9:
+            corrs.append(0.0)
+            continue
+        corrs.append(float(np.corrcoef(xs, xt)[0, 1]))
+        ferrs.append(abs(dominant_frequency(xs, fps) - dominant_frequency(xt, fps)))
+    return Score(c1, float(call), cov, float(np.median(corrs)) if corrs else 0.0,
+                 float(np.median(ferrs)) if ferrs else 99.0, len(skel_parents))

@@ -1,0 +1,34 @@
+"""View3D sidebar panel, tab "Tree"."""
+import bpy
+
+
+class TREE_PT_main(bpy.types.Panel):
+    bl_label = "Tree from Video"
+    bl_idname = "TREE_PT_main"
+    bl_space_type = "VIEW_3D"
+    bl_region_type = "UI"
+    bl_category = "Tree"
+
+    def draw(self, context):
+        props = context.scene.tree_video
+        col = self.layout.column()
+        col.prop(props, "video_path")
+        col.prop(props, "outline_path")
+        col.prop(props, "levels")
+        col.prop(props, "skeleton_kind")
+        col.prop(props, "output_dir")
+        col.prop(props, "overwrite")
+        col.operator("tree_video.trace_skeleton", icon="OUTLINER_OB_ARMATURE")
+
+
+classes = (TREE_PT_main,)
+
+
+def register():
+    for c in classes:
+        bpy.utils.register_class(c)
+
+
+def unregister():
+    for c in reversed(classes):
+        bpy.utils.unregister_class(c)
