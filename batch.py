@@ -72,10 +72,10 @@ def _progress_printer(quiet: bool):
 def _check_out(out: str, names: list[str], force: bool, InputError) -> None:
     if os.path.exists(out) and not os.path.isdir(out):
         raise InputError(f"--out '{out}' is a file; give a folder")
-    parent = out if os.path.isdir(out) else os.path.dirname(os.path.abspath(out))
+    parent = os.path.abspath(out)
     while not os.path.exists(parent):
         parent = os.path.dirname(parent)
-    if not os.access(parent, os.W_OK):
+    if not os.path.isdir(parent) or not os.access(parent, os.W_OK):
         raise InputError(f"output folder '{out}' is not writable; choose another --out")
     existing = [n for n in names if os.path.exists(os.path.join(out, n))]
     if existing and not force:

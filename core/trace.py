@@ -42,6 +42,11 @@ class TraceParams:
     min_fragment: float = 0.05       # ridge fragments shorter than this are ignored
     spacing: float = 0.035           # chain node spacing
     min_spur: float = 0.03           # side paths shorter than this are pruned (unless a cluster)
+    merge_radius: float = 0.015      # paths this close to the tree join it instead of running beside
+    twig_tracks: int = 6             # tracks per twig target below the finest hierarchy level
+    max_twigs: int = 300             # at most this many twig targets (many tracks in a large video)
+    local_ridge: float = 0.0        # window for local ridge normalization (0 = global only)
+    local_floor: float = 0.15        # ridges weaker than this share of the strongest never count fully
 
 
 def bark_evidence(maps: AppearanceMaps) -> np.ndarray:
@@ -69,18 +74,18 @@ def ridge_filter(img: np.ndarray, scales) -> np.ndarray:
 
 
 def sky_likeness(maps: AppearanceMaps) -> np.ndarray:
-    """``(h, w)`` in [0, 1]: bright relative to the tree, steady, and smooth in space."""
+    """``(h, w)`` in [0, 1]: bright relative to the tree, steady over time and smooth in space."""
     inside = maps.mask
-    mean = maps.mean
-    lo, hi = (np.percentile(mean[inside], [50, 97]) if inside.any() else (0.0, 255.0))
-    bright = np.clip((mean - lo) / max(hi - lo, 1.0), 0, 1)
-    gx = cv2.Sobel(maps.first.mean(-1).astype(np.float32), cv2.CV_32F, 1, 0)
-    gy = cv2.Sobel(maps.first.mean(-1).astype(np.float32), cv2.CV_32F, 0, 1)
-    grad = cv2.GaussianBlur(np.hypot(gx, gy), (0, 0), 2.0)
-    gs = float(np.median(grad[inside])) if inside.any() else 1.0
-    smooth = np.exp(-grad / max(gs, 1e-3))
-    sky = bright * smooth
-    return cv2.GaussianBlur(sky.astype(np.float32), (0, 0), 1.0)
+    if not inside.any():
+        return np.zeros_like(maps.mean)
+    lo, hi = np.percentile(maps.mean[inside], [50, 97])
+    bright = np.clip((maps.mean - lo) / max(hi - lo, 1.0), 0, 1)
+    steady = np.exp(-maps.std / max(float(np.median(maps.std[inside])), 1e-3))
+    first = cv2.GaussianBlur(maps.first.mean(-1).astype(np.float32), (0, 0), 1.5)
+    grad = cv2.GaussianBlur(np.hypot(cv2.Sobel(first, cv2.CV_32F, 1, 0), cv2.Sobel(first, cv2.CV_32F, 0, 1)),
+                            (0, 0), 2.0)
+    smooth = np.exp(-grad / max(float(np.median(grad[inside])), 1e-3))
+    return cv2.GaussianBlur((bright * steady * smooth).astype(np.float32), (0, 0), 1.0)
 
 
 def grid_graph(cost: np.ndarray, inside: np.ndarray) -> sp.csr_matrix:
@@ -119,17 +124,50 @@ def ridge_targets(ridge_mask: np.ndarray, root: int, dist: np.ndarray, min_len: 
     return out
 
 
-def path_tree(pred: np.ndarray, root: int, targets: list[int]) -> dict[int, int]:
-    """Union of predecessor paths from each target back to ``root``: {pixel: parent pixel}."""
+def path_tree(pred: np.ndarray, dist: np.ndarray, cost: np.ndarray, root: int, targets: list[int],
+              width: int, merge_radius: int) -> dict[int, int]:
+    """Union of shortest paths from each target back to ``root``: {pixel: parent pixel}.
+
+    Targets are added farthest first. Walking back from a target, the path joins the tree as soon
+    as it passes within ``merge_radius`` px of a tree pixel that is not much farther from the root
+    (by less than crossing the merge radius would cost), so paths that would run side by side (a
+    wide trunk has many near-equal shortest paths) share one line. ``cost`` is per pixel (flat).
+    """
+    height = len(pred) // width
+    on_tree = np.zeros((height, width), bool)
+    on_tree.flat[root] = True
     parent: dict[int, int] = {}
-    for t in targets:
+    r = max(int(merge_radius), 0)
+    for t in sorted(targets, key=lambda u: -dist[u]):
         u = t
-        while u != root and u not in parent and u >= 0:
+        path = [u]
+        join = None
+        while u != root:
+            y, x = divmod(u, width)
+            if on_tree[y, x]:
+                join = u
+                break
+            if r:
+                y0, y1, x0, x1 = max(y - r, 0), min(y + r + 1, height), max(x - r, 0), min(x + r + 1, width)
+                wy, wx = np.nonzero(on_tree[y0:y1, x0:x1])
+                if len(wy):
+                    cand = (wy + y0) * width + (wx + x0)
+                    ok = dist[cand] <= dist[u] + 2 * r * cost[u]
+                    if ok.any():
+                        d2 = (wy[ok] + y0 - y) ** 2 + (wx[ok] + x0 - x) ** 2
+                        join = int(cand[ok][np.argmin(d2)])
+                        path.append(join)
+                        break
             p = int(pred[u])
             if p < 0:
                 break
-            parent[u] = p
             u = p
+            path.append(u)
+        if join is None and u != root:
+            continue   # unreachable target
+        for a, b in zip(path[:-1], path[1:]):
+            parent[a] = b
+            on_tree.flat[a] = True
     return parent
 
 
@@ -137,7 +175,8 @@ def simplify_tree(parent: dict[int, int], root: int, keep: set[int], width: int,
                   spacing: float, min_spur: float) -> tuple[np.ndarray, np.ndarray]:
     """Pixel tree → node tree: root, branch points, tips and chain nodes every ``spacing`` px.
 
-    Side branches shorter than ``min_spur`` px that end in no ``keep`` pixel are dropped.
+    Side branches shorter than ``min_spur`` px are dropped, or half that when they lead to a
+    ``keep`` pixel (a leaf cluster: its twig is real even when short).
     Returns ``parents (N,)`` and ``pos (N, 2)`` (x, y) working px; node 0 is the root.
     """
     kids: dict[int, list[int]] = {}
@@ -164,11 +203,11 @@ def simplify_tree(parent: dict[int, int], root: int, keep: set[int], width: int,
     stack = [(root, 0, 0.0)]   # (pixel, node index of last emitted ancestor, arc length since it)
     while stack:
         u, last, run = stack.pop()
-        ch = [c for c in kids.get(u, []) if has_keep[c] or reach[c] >= min_spur]
+        ch = [c for c in kids.get(u, []) if reach[c] >= (0.5 if has_keep[c] else 1.0) * min_spur]
         for c in ch:
             step = float(np.linalg.norm(xy(c) - xy(u)))
             r = run + step
-            n_kids = len([g for g in kids.get(c, []) if has_keep[g] or reach[g] >= min_spur])
+            n_kids = len([g for g in kids.get(c, []) if reach[g] >= (0.5 if has_keep[g] else 1.0) * min_spur])
             if n_kids != 1 or r >= spacing:
                 parents.append(last)
                 pos.append(xy(c))
@@ -178,20 +217,74 @@ def simplify_tree(parent: dict[int, int], root: int, keep: set[int], width: int,
     return np.array(parents, np.int32), np.array(pos)
 
 
-def trunk_base(evidence: np.ndarray, mask: np.ndarray) -> tuple[int, int]:
-    """(x, y) working px of the trunk base: bottom rows of the outline, darkest-steadiest column."""
+def meeting_points(hier: Hierarchy, p0: np.ndarray, knn: int = 8) -> dict[int, np.ndarray]:
+    """Where the two child clusters of every internal cluster meet: the mean of the midpoints of
+    kNN edges joining one child's tracks to the other's (px, ``p0 (P, 2)`` frame-1 positions)."""
+    from scipy.spatial import cKDTree
+    out = {}
+    ch = {}
+    for c, p in enumerate(hier.parent):
+        if p >= 0:
+            ch.setdefault(int(p), []).append(c)
+    for c, kids in ch.items():
+        if len(kids) != 2:
+            continue
+        a, b = hier.members[kids[0]], hier.members[kids[1]]
+        if len(a) == 0 or len(b) == 0:
+            continue
+        k = min(knn, len(b))
+        d, j = cKDTree(p0[b]).query(p0[a], k=k)
+        d, j = d.reshape(len(a), k), j.reshape(len(a), k)
+        # pairs closer than the typical neighbour spacing inside the cluster form the boundary
+        all_idx = hier.members[c]
+        kk = min(knn + 1, len(all_idx))
+        sp = np.median(cKDTree(p0[all_idx]).query(p0[all_idx], k=kk)[0][:, -1])
+        near = d <= 1.5 * sp
+        if not near.any():
+            ia, jb = np.unravel_index(np.argmin(d), d.shape)
+            near = np.zeros_like(d, bool)
+            near[ia, jb] = True
+        ia, kb = np.nonzero(near)
+        mids = 0.5 * (p0[a][ia] + p0[b][j[ia, kb]])
+        out[c] = mids.mean(0)
+    return out
+
+
+def foliage_targets(hier: Hierarchy, p0: np.ndarray, per_target: int) -> np.ndarray:
+    """Twig ends below the finest hierarchy level: each leaf cluster's tracks split spatially
+    (k-means, seeded) into groups of about ``per_target`` tracks; returns their centroids (px)."""
+    from scipy.cluster.vq import kmeans2
+    out = []
+    for c in hier.leaves:
+        pts = p0[hier.members[c]].astype(np.float64)
+        k = int(len(pts) // max(per_target, 1))
+        if k < 2:
+            continue
+        cent, lab = kmeans2(pts, k, minit="++", seed=np.random.default_rng(int(c)))
+        out.extend(cent[np.bincount(lab, minlength=k) > 0])
+    return np.array(out).reshape(-1, 2)
+
+
+def trunk_base(ridge: np.ndarray, evidence: np.ndarray, mask: np.ndarray) -> tuple[int, int]:
+    """(x, y) working px of the trunk base: the column of strongest ridge in the lowest 8% of
+    the outline, at the lowest pixel of that column where the ridge is still strong."""
     ys, xs = np.nonzero(mask)
-    ybot = ys.max()
-    band = max(2, int(0.03 * (ybot - ys.min() + 1)))
+    ybot, ytop = ys.max(), ys.min()
+    band = max(3, int(0.08 * (ybot - ytop + 1)))
     rows = slice(max(ybot - band, 0), ybot + 1)
-    col = evidence[rows].sum(0) * mask[rows].any(0)
+    col = (ridge[rows] * mask[rows]).sum(0)
+    if col.max() <= 0:
+        col = (evidence[rows] * mask[rows]).sum(0)
     if col.max() <= 0:
         row = xs[ys == ybot]
         return int(round(row.mean())), int(ybot)
     prof = np.convolve(col, np.ones(5) / 5, mode="same")
     x = int(np.argmax(prof))
-    yy = np.flatnonzero(mask[:, x])
-    return x, int(yy.max()) if len(yy) else int(ybot)
+    column = ridge[:, x] * mask[:, x]
+    if column[rows].max() <= 0:
+        return x, int(np.flatnonzero(mask[:, x]).max())
+    strong = np.flatnonzero(column >= 0.3 * column[rows].max())
+    return x, int(strong.max())
 
 
 def traced_skeleton(tracks: Tracks, hier: Hierarchy, outline: Outline, maps: AppearanceMaps,
@@ -209,11 +302,21 @@ def traced_skeleton(tracks: Tracks, hier: Hierarchy, outline: Outline, maps: App
     inside_r = ridge[mask]
     warnings = []
     rscale = float(np.percentile(inside_r, 99)) if inside_r.size else 0.0
+    rmax = float(inside_r.max()) if inside_r.size else 0.0
     rn = np.clip(ridge / rscale, 0, 1) if rscale > 1e-6 else np.zeros_like(ridge)
+    if rscale > 1e-6 and params.local_ridge > 0:
+        # faint limbs in the crown count relative to their surroundings, not to the trunk
+        k = max(3, int(params.local_ridge * size) | 1)
+        local = cv2.dilate(ridge, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k)))
+        rn = np.maximum(rn, np.clip(ridge / np.maximum(local, params.local_floor * rscale), 0, 1))
     has_evidence = rscale > 1e-6 and float((rn > 0.3).sum()) > 0.02 * size * size / 10
     sky = sky_likeness(maps)
     cost = 1.0 + params.foliage_cost * (1.0 - rn) ** 2 + params.sky_cost * sky
-    bx, by = trunk_base(ev, mask)
+    # the ridges' centre lines are cheaper still, so paths along a wide trunk share one line
+    # instead of running side by side (which would fake a split at the base)
+    if rmax > 1e-6:   # a small pull toward the ridge crest (no plateau across a wide trunk)
+        cost -= 0.5 * np.sqrt(ridge / rmax)
+    bx, by = trunk_base(ridge, ev, mask)
     if not has_evidence:
         warnings.append("no bark visible between the leaves: skeleton follows the motion hierarchy "
                         "with a straight trunk")
@@ -233,7 +336,7 @@ def traced_skeleton(tracks: Tracks, hier: Hierarchy, outline: Outline, maps: App
     reach = np.isfinite(dist).reshape(h, w)
     ry, rx = np.nonzero(reach)
     targets, keep = [], set()
-    for c in hier.leaves:
+    for c in range(len(hier.parent)):
         m = hier.members[c]
         if len(m) == 0:
             continue
@@ -242,11 +345,19 @@ def traced_skeleton(tracks: Tracks, hier: Hierarchy, outline: Outline, maps: App
         t = int(ry[j] * w + rx[j])
         targets.append(t)
         keep.add(t)
+    for cx, cy in foliage_targets(hier, p0, max(params.twig_tracks, len(p0) // params.max_twigs)):
+        j = np.argmin((rx - cx) ** 2 + (ry - cy) ** 2)
+        t = int(ry[j] * w + rx[j])
+        targets.append(t)
+        keep.add(t)
+    for c, m in meeting_points(hier, p0).items():
+        j = np.argmin((rx - m[0]) ** 2 + (ry - m[1]) ** 2)
+        targets.append(int(ry[j] * w + rx[j]))
     if has_evidence:
         thr = max(0.3, float(np.percentile(rn[mask], 90)))
         targets += ridge_targets((rn > thr) & mask, root, dist, params.min_fragment * size)
     targets = [t for t in targets if t != root and np.isfinite(dist[t])]
-    parent_px = path_tree(pred, root, targets)
+    parent_px = path_tree(pred, dist, cost.ravel(), root, targets, w, round(params.merge_radius * size))
     parents, pos = simplify_tree(parent_px, root, keep, w, params.spacing * size, params.min_spur * size)
     report(progress, "skeleton", 0.7)
     parents, pos = binarize(parents, pos)

@@ -28,6 +28,8 @@ class TrackParams:
     min_distance: float = 3.0     # px between corners
     fb_max_error: float = 1.0     # px forward–backward disagreement that marks a point lost
     outlier_frac: float = 0.06    # of crown size: motion beyond neighbours' that marks an outlier
+    jerk_frac: float = 0.006      # of crown size: a sudden change of per-frame step that marks a
+                                  # track grabbed by something passing in front (at least 6x its usual)
     neighbours: int = 8           # tracks compared against for the outlier test
     stabilize: bool = True        # remove camera motion using features outside the outline
 
@@ -160,6 +162,9 @@ class Tracker:
         self.cam = CameraEstimator(gray, outline.mask, self.params) if self.params.stabilize else None
         self.alive = np.ones(len(pts), bool)
         self.nbr = self._neighbours(pts)
+        self.step = np.full((len(pts), 2), np.nan, np.float32)   # last stabilized step, px
+        self.jerk = np.zeros(len(pts), np.float32)               # running mean |Δ step|, px
+        self.resid = [np.zeros(len(pts), np.float32)]            # per frame: motion beyond neighbours
 
     def _neighbours(self, pts: np.ndarray) -> np.ndarray:
         k = min(self.params.neighbours, max(len(pts) - 1, 0))
@@ -177,27 +182,50 @@ class Tracker:
         self.alive &= ok
         self.raw = np.where(self.alive[:, None], new, self.raw).astype(np.float32)
         stab = apply_affine(cam, self.raw).astype(np.float32)
+        self._reject_jerks(stab)
         self._reject_outliers(stab)
         self.points.append(stab)
         self.valid.append(self.alive.copy())
         self.camera.append(np.asarray(cam, float))
         self.prev = gray
 
+    def _reject_jerks(self, stab: np.ndarray) -> None:
+        """Kill tracks whose per-frame step changes abruptly (branches sway smoothly; a track
+        dragged by a passer-by jumps from the branch's speed to the passer-by's)."""
+        step = stab - self.points[-1]
+        change = np.linalg.norm(step - self.step, axis=1)
+        floor = self.params.jerk_frac * self.crown
+        bad = self.alive & np.isfinite(change) & (change > np.maximum(floor, 6.0 * self.jerk))
+        self.jerk = np.where(np.isfinite(change), 0.9 * self.jerk + 0.1 * np.nan_to_num(change), self.jerk)
+        self.step = step
+        self.alive &= ~bad
+
     def _reject_outliers(self, stab: np.ndarray) -> None:
-        """Kill tracks that move far more than their spatial neighbours or beyond the crown."""
+        """Kill tracks that move far more than their spatial neighbours or beyond the crown.
+
+        A track is dragged away gradually before it crosses the threshold, so the frames leading
+        up to its death where it already strayed (over a quarter of the threshold) are invalidated
+        too: node motion must not inherit the drag.
+        """
         if self.nbr.shape[1] == 0:
             return
         disp = stab - self.points[0]
         d_n = np.where(self.alive[self.nbr][..., None], disp[self.nbr], np.nan)
-        if d_n.size == 0:
-            return
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)   # all-NaN rows: no live neighbour
             med = np.nanmedian(d_n, axis=1)
-        resid = np.linalg.norm(disp - np.nan_to_num(med), axis=1)
+        resid = np.linalg.norm(disp - np.nan_to_num(med), axis=1).astype(np.float32)
         far = np.linalg.norm(disp, axis=1) > 0.5 * self.crown
-        bad = (resid > self.params.outlier_frac * self.crown) | far
+        thr = self.params.outlier_frac * self.crown
+        bad = self.alive & ((resid > thr) | far)
         self.alive &= ~bad
+        self.resid.append(resid)
+        idx = np.flatnonzero(bad)
+        for t in range(len(self.valid) - 1, 0, -1):
+            if len(idx) == 0:
+                break
+            idx = idx[self.resid[t][idx] > 0.25 * thr]
+            self.valid[t][idx] = False
 
     def result(self) -> Tracks:
         """All frames fed so far as :class:`Tracks` (with a warning when the tree barely moves)."""

@@ -1,0 +1,28 @@
+"""Synthetic sample videos for tests: the committed ones and freshly generated variants."""
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+from tree_from_video.sample_videos import synth_tree
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+COMMITTED = os.path.join(ROOT, "sample_videos")
+
+
+def committed(name: str) -> str:
+    """Folder of a committed sample (video.mp4, outline.json, mask.png, truth.npz)."""
+    return os.path.join(COMMITTED, name)
+
+
+def generate(variant: str, folder: str, **overrides) -> str:
+    """Generate ``variant`` into ``folder`` (once) and return the folder."""
+    if not os.path.exists(os.path.join(folder, "truth.npz")):
+        synth_tree.generate(synth_tree.config_for(variant, **overrides), folder)
+    return folder
+
+
+def load_truth(folder: str) -> dict:
+    with np.load(os.path.join(folder, "truth.npz"), allow_pickle=False) as z:
+        return {k: z[k] for k in z.files}
