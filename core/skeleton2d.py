@@ -24,6 +24,7 @@ from .progress import ProgressFn, report
 from .tracks import Tracks
 
 FOLD_ALPHA = 0.4
+NODE_MOTION_SCALE = 0.02   # of the tree's size: how far a node looks for tracks to follow
 
 
 @dataclass
@@ -194,6 +195,6 @@ def paper_skeleton(tracks: Tracks, hier: Hierarchy, outline: Outline, alpha: flo
     report(progress, "skeleton", 0.5)
     fixed = np.zeros(len(parents), bool)
     fixed[0] = True
-    nodes = node_motion(pos, tracks, 0.04 * crown_scale(outline), fixed)
+    nodes = node_motion(pos, tracks, NODE_MOTION_SCALE * crown_scale(outline), fixed)
     report(progress, "skeleton", 1.0)
     return Skeleton2D(parents, nodes, branching_level(parents), tracks.fps, "paper")

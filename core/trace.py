@@ -28,7 +28,8 @@ from .appearance import AppearanceMaps
 from .hierarchy import Hierarchy
 from .outline import Outline
 from .progress import ProgressFn, report
-from .skeleton2d import Skeleton2D, binarize, branching_level, children_lists, crown_scale, node_motion
+from .skeleton2d import (NODE_MOTION_SCALE, Skeleton2D, binarize, branching_level, crown_scale,
+                         node_motion)
 from .tracks import Tracks
 
 
@@ -59,9 +60,14 @@ def bark_evidence(maps: AppearanceMaps) -> np.ndarray:
     return e.astype(np.float32)
 
 
-def ridge_filter(img: np.ndarray, scales) -> np.ndarray:
-    """Multi-scale bright-ridge strength ``σ² · max(0, −λ_min(H))``, max over ``scales`` (px)."""
+def ridge_filter(img: np.ndarray, scales) -> tuple[np.ndarray, np.ndarray]:
+    """Multi-scale bright-ridge strength ``σ² · max(0, −λ_min(H))``, max over ``scales`` (px).
+
+    Returns ``(strength, scale)``: both ``(h, w)`` float32, ``scale`` the σ that won (a ridge of
+    half-width b responds best near σ = b / √3).
+    """
     out = np.zeros_like(img, dtype=np.float32)
+    best = np.full(img.shape, float(scales[0]), np.float32)
     for s in scales:
         g = cv2.GaussianBlur(img, (0, 0), s)
         dxx = cv2.Sobel(g, cv2.CV_32F, 2, 0, ksize=3)
@@ -69,8 +75,10 @@ def ridge_filter(img: np.ndarray, scales) -> np.ndarray:
         dxy = cv2.Sobel(g, cv2.CV_32F, 1, 1, ksize=3)
         tr, det_part = dxx + dyy, np.sqrt((dxx - dyy) ** 2 + 4 * dxy ** 2)
         lam_min = 0.5 * (tr - det_part)
-        out = np.maximum(out, (s * s) * np.maximum(-lam_min, 0.0))
-    return out
+        r = (s * s) * np.maximum(-lam_min, 0.0)
+        best = np.where(r > out, np.float32(s), best)
+        out = np.maximum(out, r)
+    return out, best
 
 
 def sky_likeness(maps: AppearanceMaps) -> np.ndarray:
@@ -125,19 +133,20 @@ def ridge_targets(ridge_mask: np.ndarray, root: int, dist: np.ndarray, min_len: 
 
 
 def path_tree(pred: np.ndarray, dist: np.ndarray, cost: np.ndarray, root: int, targets: list[int],
-              width: int, merge_radius: int) -> dict[int, int]:
+              width: int, radius: np.ndarray) -> dict[int, int]:
     """Union of shortest paths from each target back to ``root``: {pixel: parent pixel}.
 
     Targets are added farthest first. Walking back from a target, the path joins the tree as soon
-    as it passes within ``merge_radius`` px of a tree pixel that is not much farther from the root
-    (by less than crossing the merge radius would cost), so paths that would run side by side (a
-    wide trunk has many near-equal shortest paths) share one line. ``cost`` is per pixel (flat).
+    as it passes within ``radius`` px (the tree pixel's, flat: wider on thick branches) of a tree pixel
+    that is not much farther from the root (by less than crossing that radius would cost), so
+    paths that would run side by side (a wide trunk has many near-equal shortest paths) share one
+    line. ``cost`` is per pixel (flat).
     """
     height = len(pred) // width
     on_tree = np.zeros((height, width), bool)
     on_tree.flat[root] = True
     parent: dict[int, int] = {}
-    r = max(int(merge_radius), 0)
+    R = int(radius.max()) if len(radius) else 0
     for t in sorted(targets, key=lambda u: -dist[u]):
         u = t
         path = [u]
@@ -147,17 +156,16 @@ def path_tree(pred: np.ndarray, dist: np.ndarray, cost: np.ndarray, root: int, t
             if on_tree[y, x]:
                 join = u
                 break
-            if r:
-                y0, y1, x0, x1 = max(y - r, 0), min(y + r + 1, height), max(x - r, 0), min(x + r + 1, width)
-                wy, wx = np.nonzero(on_tree[y0:y1, x0:x1])
-                if len(wy):
-                    cand = (wy + y0) * width + (wx + x0)
-                    ok = dist[cand] <= dist[u] + 2 * r * cost[u]
-                    if ok.any():
-                        d2 = (wy[ok] + y0 - y) ** 2 + (wx[ok] + x0 - x) ** 2
-                        join = int(cand[ok][np.argmin(d2)])
-                        path.append(join)
-                        break
+            y0, y1, x0, x1 = max(y - R, 0), min(y + R + 1, height), max(x - R, 0), min(x + R + 1, width)
+            wy, wx = np.nonzero(on_tree[y0:y1, x0:x1])
+            if len(wy):
+                cand = (wy + y0) * width + (wx + x0)
+                d2 = (wy + y0 - y) ** 2 + (wx + x0 - x) ** 2
+                ok = (d2 <= radius[cand] ** 2) & (dist[cand] <= dist[u] + 2 * radius[cand] * cost[u])
+                if ok.any():
+                    join = int(cand[ok][np.argmin(d2[ok])])
+                    path.append(join)
+                    break
             p = int(pred[u])
             if p < 0:
                 break
@@ -266,25 +274,28 @@ def foliage_targets(hier: Hierarchy, p0: np.ndarray, per_target: int) -> np.ndar
 
 
 def trunk_base(ridge: np.ndarray, evidence: np.ndarray, mask: np.ndarray) -> tuple[int, int]:
-    """(x, y) working px of the trunk base: the column of strongest ridge in the lowest 8% of
-    the outline, at the lowest pixel of that column where the ridge is still strong."""
+    """(x, y) working px of the trunk base.
+
+    The column of strongest ridge over the lowest quarter of the outline (a trunk runs through
+    all of it, ground texture only through its last rows), followed downward from its strongest
+    point while the ridge stays strong; without any ridge, the bottom-centre of the outline.
+    """
     ys, xs = np.nonzero(mask)
     ybot, ytop = ys.max(), ys.min()
-    band = max(3, int(0.08 * (ybot - ytop + 1)))
+    band = max(3, int(0.25 * (ybot - ytop + 1)))
     rows = slice(max(ybot - band, 0), ybot + 1)
     col = (ridge[rows] * mask[rows]).sum(0)
     if col.max() <= 0:
-        col = (evidence[rows] * mask[rows]).sum(0)
-    if col.max() <= 0:
         row = xs[ys == ybot]
         return int(round(row.mean())), int(ybot)
-    prof = np.convolve(col, np.ones(5) / 5, mode="same")
-    x = int(np.argmax(prof))
+    x = int(np.argmax(np.convolve(col, np.ones(5) / 5, mode="same")))
     column = ridge[:, x] * mask[:, x]
-    if column[rows].max() <= 0:
-        return x, int(np.flatnonzero(mask[:, x]).max())
-    strong = np.flatnonzero(column >= 0.3 * column[rows].max())
-    return x, int(strong.max())
+    y0 = max(ybot - band, 0)
+    y = y0 + int(np.argmax(np.convolve(column[y0:ybot + 1], np.ones(5) / 5, mode="same")))
+    ref = float(column[y])
+    while y + 1 <= ybot and mask[y + 1, x] and column[y + 1] >= 0.3 * ref:
+        y += 1
+    return x, int(y)
 
 
 def traced_skeleton(tracks: Tracks, hier: Hierarchy, outline: Outline, maps: AppearanceMaps,
@@ -298,7 +309,7 @@ def traced_skeleton(tracks: Tracks, hier: Hierarchy, outline: Outline, maps: App
     ys, _ = np.nonzero(mask)
     size = float(ys.max() - ys.min() + 1)                      # tree height, working px
     ev = bark_evidence(maps)
-    ridge = ridge_filter(ev, params.ridge_scales)
+    ridge, ridge_scale = ridge_filter(ev, params.ridge_scales)
     inside_r = ridge[mask]
     warnings = []
     rscale = float(np.percentile(inside_r, 99)) if inside_r.size else 0.0
@@ -331,39 +342,42 @@ def traced_skeleton(tracks: Tracks, hier: Hierarchy, outline: Outline, maps: App
     dist, pred = dijkstra(G, directed=False, indices=root, return_predecessors=True)
     report(progress, "skeleton", 0.5)
 
-    # targets: leaf-cluster centroids (snapped into the outline) and far ends of ridge fragments
-    p0 = tracks.points[0] * f
+    # targets: cluster centroids and twig ends (foliage), where clusters meet, far ends of ridges
     reach = np.isfinite(dist).reshape(h, w)
     ry, rx = np.nonzero(reach)
-    targets, keep = [], set()
-    for c in range(len(hier.parent)):
-        m = hier.members[c]
-        if len(m) == 0:
-            continue
-        cx, cy = p0[m].mean(0)
-        j = np.argmin((rx - cx) ** 2 + (ry - cy) ** 2)
-        t = int(ry[j] * w + rx[j])
-        targets.append(t)
-        keep.add(t)
-    for cx, cy in foliage_targets(hier, p0, max(params.twig_tracks, len(p0) // params.max_twigs)):
-        j = np.argmin((rx - cx) ** 2 + (ry - cy) ** 2)
-        t = int(ry[j] * w + rx[j])
-        targets.append(t)
-        keep.add(t)
-    for c, m in meeting_points(hier, p0).items():
-        j = np.argmin((rx - m[0]) ** 2 + (ry - m[1]) ** 2)
-        targets.append(int(ry[j] * w + rx[j]))
+
+    def snap(points: np.ndarray) -> np.ndarray:
+        """Nearest reachable pixel (flat index) for each of ``points (K, 2)`` working px."""
+        if len(points) == 0:
+            return np.zeros(0, int)
+        from scipy.spatial import cKDTree
+        _, j = cKDTree(np.stack([rx, ry], 1)).query(points)
+        return ry[j] * w + rx[j]
+
+    p0 = tracks.points[0] * f
+    centroids = np.array([p0[m].mean(0) for m in hier.members if len(m)]).reshape(-1, 2)
+    twigs = foliage_targets(hier, p0, max(params.twig_tracks, len(p0) // params.max_twigs))
+    foliage = snap(np.vstack([centroids, twigs]))
+    # a foliage target on visible bark is no twig end: the branch under it is traced already
+    foliage = foliage[rn.ravel()[foliage] < 0.5]
+    keep = set(int(t) for t in foliage)
+    targets = [int(t) for t in foliage]
+    targets += [int(t) for t in snap(np.array(list(meeting_points(hier, p0).values())).reshape(-1, 2))]
     if has_evidence:
         thr = max(0.3, float(np.percentile(rn[mask], 90)))
         targets += ridge_targets((rn > thr) & mask, root, dist, params.min_fragment * size)
     targets = [t for t in targets if t != root and np.isfinite(dist[t])]
-    parent_px = path_tree(pred, dist, cost.ravel(), root, targets, w, round(params.merge_radius * size))
+    # merge radius: a share of the tree's size, wider across thick visible branches
+    body = ((rn > 0.3) & mask).astype(np.uint8)
+    half_width = cv2.distanceTransform(body, cv2.DIST_L2, 3)
+    radius = np.maximum(params.merge_radius * size, 1.5 * half_width + 1.0)
+    parent_px = path_tree(pred, dist, cost.ravel(), root, targets, w, np.round(radius).astype(int).ravel())
     parents, pos = simplify_tree(parent_px, root, keep, w, params.spacing * size, params.min_spur * size)
     report(progress, "skeleton", 0.7)
     parents, pos = binarize(parents, pos)
     pos = pos / f
     fixed = np.zeros(len(parents), bool)
     fixed[0] = True
-    nodes = node_motion(pos, tracks, 0.04 * crown_scale(outline), fixed)
+    nodes = node_motion(pos, tracks, NODE_MOTION_SCALE * crown_scale(outline), fixed)
     report(progress, "skeleton", 1.0)
     return Skeleton2D(parents, nodes, branching_level(parents), tracks.fps, "traced", warnings)
