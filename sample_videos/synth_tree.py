@@ -1266,7 +1266,7 @@ def generate(cfg: SynthConfig, out_dir: str | os.PathLike,
 
     Files: video.mp4 ('mp4v', cfg.fps, width x height, cfg.frames frames); outline.json
     {"polygon": [[x, y], ...]} frame-1 px; mask.png uint8 0/255 filled polygon (H, W);
-    truth.npz (np.savez, no object arrays) with
+    truth.npz (np.savez_compressed, no object arrays) with
       parents (N,) int32 (-1 root), nodes3d (F, N, 3) float32 world px (x right, y depth, z up),
       nodes2d (F, N, 2) float32 frame-1 camera px, nodes2d_image (F, N, 2) float32 image px
       (= nodes2d + camera_offset), camera_offset (F, 2) float32 px, radius (N,) float32 px,
@@ -1299,7 +1299,7 @@ def generate(cfg: SynthConfig, out_dir: str | os.PathLike,
     mask = np.zeros((cfg.height, cfg.width), np.uint8)
     cv2.fillPoly(mask, [np.rint(poly).astype(np.int32)], 255)
     cv2.imwrite(str(paths["mask"]), mask)
-    np.savez(paths["truth"], **truth_arrays(scene, vis))
+    np.savez_compressed(paths["truth"], **truth_arrays(scene, vis))
     return {k: str(v) for k, v in paths.items()}
 
 
