@@ -78,6 +78,10 @@ def load_outline(path: str | os.PathLike, width: int, height: int, scale: float 
         poly = _read_polygon(path) * scale
         if len(poly) < 3:
             raise InputError(f"outline '{path}' has {len(poly)} point(s); draw at least 3 around the tree")
+        poly_area = abs(float(cv2.contourArea(poly.astype(np.float32))))
+        if poly_area < MIN_AREA_PX:
+            raise InputError(f"outline '{path}' is degenerate (area {poly_area:.0f} px²); "
+                             "draw a polygon around the whole tree")
         mask = polygon_to_mask(poly, width, height)
     else:
         img = cv2.imread(path, cv2.IMREAD_GRAYSCALE)

@@ -60,6 +60,9 @@ def track_video(info: VideoInfo, outline: Outline, start: int, stop: int, params
     if first is None:
         raise InputError(f"video '{info.path}' has no frame {start}; check --frames")
     tracker = Tracker(first, outline, info.fps, start, params)
+    if len(tracker.raw) < 8:
+        raise InputError(f"only {len(tracker.raw)} trackable corners inside the outline; "
+                         "outline the whole tree (leaves and trunk) in the first frame")
     acc = AppearanceAccumulator(first, outline)
     total = stop - start
     for k, frame in enumerate(frames, start=1):
@@ -78,11 +81,7 @@ def run(video: str, outline_path: str, settings: Settings | None = None,
     info = open_video(video, s.scale)
     start, stop = parse_frame_range(s.frames, info.frame_count)
     outline = load_outline(outline_path, info.width, info.height, s.scale)
-    report(progress, "reading", 1.0)
     tracks, maps = track_video(info, outline, start, stop, s.track, sub_progress(progress, 0.0, 0.7))
-    if tracks.points.shape[1] < 8:
-        raise InputError(f"only {tracks.points.shape[1]} trackable corners inside the outline; "
-                         "outline the whole tree (leaves and trunk) in the first frame")
     hier = build_hierarchy(tracks, HierarchyParams(levels=s.levels), sub_progress(progress, 0.7, 0.85))
     sk_prog = sub_progress(progress, 0.85, 1.0)
     if s.skeleton == "paper":

@@ -14,6 +14,10 @@ import numpy as np
 
 from .errors import InputError
 
+# FFmpeg prints its own complaints ("moov atom not found") straight to stderr; the user gets our
+# one-line error naming the fix instead. An explicit setting by the user wins.
+os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
+
 
 @dataclass(frozen=True)
 class VideoInfo:
