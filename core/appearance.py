@@ -32,7 +32,7 @@ class AppearanceMaps:
 
 
 class AppearanceAccumulator:
-    """Feed BGR frames with their image→frame-1 affine; ``maps()`` gives :class:`AppearanceMaps`."""
+    """Feed grey frames with their image→frame-1 affine; ``maps()`` gives :class:`AppearanceMaps`."""
 
     def __init__(self, frame0: np.ndarray, outline: Outline, max_side: int = 320,
                  dark_percentile: float = 35.0):
@@ -42,22 +42,24 @@ class AppearanceAccumulator:
         self.size = (max(1, int(round(w * self.factor))), max(1, int(round(h * self.factor))))
         self.mask = cv2.resize(outline.mask.astype(np.uint8), self.size, interpolation=cv2.INTER_NEAREST) > 0
         self.pct = dark_percentile
-        self.sum = np.zeros(self.size[::-1])
+        self.sum = np.zeros(self.size[::-1])       # float64: sums over thousands of frames
         self.sumsq = np.zeros(self.size[::-1])
-        self.dark = np.zeros(self.size[::-1])
+        self.dark = np.zeros(self.size[::-1], np.float32)
         self.n = 0
         self.first = cv2.resize(frame0, self.size, interpolation=cv2.INTER_AREA)
-        self.feed(frame0, np.array([[1.0, 0, 0], [0, 1.0, 0]]))
+        self.feed(cv2.cvtColor(frame0, cv2.COLOR_BGR2GRAY), np.array([[1.0, 0, 0], [0, 1.0, 0]]))
 
-    def feed(self, frame: np.ndarray, cam: np.ndarray) -> None:
-        """Add one BGR frame; ``cam (2, 3)`` maps its image coordinates to frame 1."""
-        gray = cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY).astype(np.float32)
-        m = np.asarray(cam, np.float64).copy()
+    def feed(self, gray: np.ndarray, cam: np.ndarray) -> None:
+        """Add one frame's grey image ``(H, W)`` uint8; ``cam (2, 3)`` maps its coordinates to frame 1."""
         s = self.factor
-        m = np.array([[s, 0, 0], [0, s, 0]]) @ np.vstack([m, [0, 0, 1]])  # image → working frame-1
-        g = cv2.warpAffine(gray, m, self.size, flags=cv2.INTER_AREA if s < 1 else cv2.INTER_LINEAR,
-                           borderMode=cv2.BORDER_REPLICATE).astype(np.float64)
-        thr = np.percentile(g[self.mask], self.pct) if self.mask.any() else 0.0
+        small = gray if s == 1.0 else cv2.resize(gray, self.size, interpolation=cv2.INTER_AREA)
+        gray = small.astype(np.float32)
+        m = np.asarray(cam, np.float64).copy()
+        m[:, 2] *= s                       # same map, working pixels on both sides
+        g = cv2.warpAffine(gray, m, self.size, flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+        inside = g[self.mask]
+        thr = np.partition(inside, int(len(inside) * self.pct / 100))[int(len(inside) * self.pct / 100)] \
+            if len(inside) else 0.0
         self.sum += g
         self.sumsq += g * g
         self.dark += g < thr

@@ -31,7 +31,7 @@ class HierarchyParams:
     levels: int = 6
     knn: int = 12
     min_cluster: int = 4          # clusters smaller than 2× this are not split
-    min_fraction: float = 0.05    # each side of a cut keeps at least this share of the cluster
+    min_fraction: float = 0.2     # each side keeps at least this share: the paper splits into "halves"
     motion_floor_px: float = 0.3  # σ_m never below this: tracker noise is ~0.1 px
     max_motion_frames: int = 120  # frames sampled evenly for the motion term
 

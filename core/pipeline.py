@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import cv2
+
 from .appearance import AppearanceAccumulator, AppearanceMaps
 from .errors import InputError
 from .hierarchy import Hierarchy, HierarchyParams, build_hierarchy
@@ -12,7 +14,7 @@ from .progress import ProgressFn, report, sub_progress
 from .skeleton2d import Skeleton2D, paper_skeleton
 from .trace import TraceParams, traced_skeleton
 from .tracks import Tracker, TrackParams, Tracks
-from .video import VideoInfo, iter_frames, open_video, parse_frame_range
+from .video import VideoInfo, iter_frames, open_video, parse_frame_range, prefetch
 
 SKELETON_KINDS = ("traced", "paper")
 
@@ -55,7 +57,7 @@ def check_settings(s: Settings) -> None:
 def track_video(info: VideoInfo, outline: Outline, start: int, stop: int, params: TrackParams,
                 progress: ProgressFn | None = None) -> tuple[Tracks, AppearanceMaps]:
     """One pass over frames ``start..stop-1``: tracks and appearance maps together."""
-    frames = iter_frames(info, start, stop)
+    frames = prefetch(iter_frames(info, start, stop))
     first = next(frames, None)
     if first is None:
         raise InputError(f"video '{info.path}' has no frame {start}; check --frames")
@@ -66,8 +68,9 @@ def track_video(info: VideoInfo, outline: Outline, start: int, stop: int, params
     acc = AppearanceAccumulator(first, outline)
     total = stop - start
     for k, frame in enumerate(frames, start=1):
-        tracker.feed(frame)
-        acc.feed(frame, tracker.camera[-1])
+        gray = cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY)
+        tracker.feed(gray)
+        acc.feed(gray, tracker.camera[-1])
         if k % 5 == 0:
             report(progress, "tracking", k / total)
     return tracker.result(), acc.maps()

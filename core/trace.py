@@ -46,8 +46,6 @@ class TraceParams:
     merge_radius: float = 0.015      # paths this close to the tree join it instead of running beside
     twig_tracks: int = 6             # tracks per twig target below the finest hierarchy level
     max_twigs: int = 300             # at most this many twig targets (many tracks in a large video)
-    local_ridge: float = 0.0        # window for local ridge normalization (0 = global only)
-    local_floor: float = 0.15        # ridges weaker than this share of the strongest never count fully
 
 
 def bark_evidence(maps: AppearanceMaps) -> np.ndarray:
@@ -60,14 +58,9 @@ def bark_evidence(maps: AppearanceMaps) -> np.ndarray:
     return e.astype(np.float32)
 
 
-def ridge_filter(img: np.ndarray, scales) -> tuple[np.ndarray, np.ndarray]:
-    """Multi-scale bright-ridge strength ``σ² · max(0, −λ_min(H))``, max over ``scales`` (px).
-
-    Returns ``(strength, scale)``: both ``(h, w)`` float32, ``scale`` the σ that won (a ridge of
-    half-width b responds best near σ = b / √3).
-    """
+def ridge_filter(img: np.ndarray, scales) -> np.ndarray:
+    """Multi-scale bright-ridge strength ``σ² · max(0, −λ_min(H))``, max over ``scales`` (px)."""
     out = np.zeros_like(img, dtype=np.float32)
-    best = np.full(img.shape, float(scales[0]), np.float32)
     for s in scales:
         g = cv2.GaussianBlur(img, (0, 0), s)
         dxx = cv2.Sobel(g, cv2.CV_32F, 2, 0, ksize=3)
@@ -75,10 +68,8 @@ def ridge_filter(img: np.ndarray, scales) -> tuple[np.ndarray, np.ndarray]:
         dxy = cv2.Sobel(g, cv2.CV_32F, 1, 1, ksize=3)
         tr, det_part = dxx + dyy, np.sqrt((dxx - dyy) ** 2 + 4 * dxy ** 2)
         lam_min = 0.5 * (tr - det_part)
-        r = (s * s) * np.maximum(-lam_min, 0.0)
-        best = np.where(r > out, np.float32(s), best)
-        out = np.maximum(out, r)
-    return out, best
+        out = np.maximum(out, (s * s) * np.maximum(-lam_min, 0.0))
+    return out
 
 
 def sky_likeness(maps: AppearanceMaps) -> np.ndarray:
@@ -258,19 +249,74 @@ def meeting_points(hier: Hierarchy, p0: np.ndarray, knn: int = 8) -> dict[int, n
     return out
 
 
-def foliage_targets(hier: Hierarchy, p0: np.ndarray, per_target: int) -> np.ndarray:
+def foliage_targets(hier: Hierarchy, p0: np.ndarray, per_target: int) -> tuple[np.ndarray, np.ndarray]:
     """Twig ends below the finest hierarchy level: each leaf cluster's tracks split spatially
-    (k-means, seeded) into groups of about ``per_target`` tracks; returns their centroids (px)."""
+    (k-means, seeded) into groups of about ``per_target`` tracks.
+
+    Returns their centroids ``(K, 2)`` px and the leaf cluster each belongs to ``(K,)``.
+    """
+    import warnings as _w
+
     from scipy.cluster.vq import kmeans2
-    out = []
+    out, owner = [], []
     for c in hier.leaves:
         pts = p0[hier.members[c]].astype(np.float64)
         k = int(len(pts) // max(per_target, 1))
         if k < 2:
             continue
-        cent, lab = kmeans2(pts, k, minit="++", seed=np.random.default_rng(int(c)))
-        out.extend(cent[np.bincount(lab, minlength=k) > 0])
-    return np.array(out).reshape(-1, 2)
+        with _w.catch_warnings():
+            _w.simplefilter("ignore")          # "one of the clusters is empty": dropped below
+            cent, lab = kmeans2(pts, k, minit="++", seed=np.random.default_rng(int(c)))
+        used = cent[np.bincount(lab, minlength=k) > 0]
+        out.extend(used)
+        owner.extend([int(c)] * len(used))
+    return np.array(out).reshape(-1, 2), np.array(owner, int)
+
+
+def hierarchy_geometry(hier: Hierarchy, p0: np.ndarray, base: np.ndarray, size: float,
+                       twigs: np.ndarray, owner: np.ndarray, spacing: float) -> tuple[np.ndarray, np.ndarray]:
+    """Skeleton from the hierarchy alone (no bark seen): a straight trunk from ``base`` up to the
+    lower crown, then every cluster at the point where its two children meet (leaf clusters at
+    their centroid, twig ends growing from their leaf cluster), joined by straight chains.
+
+    ``p0 (P, 2)`` track positions, ``twigs (K, 2)`` with ``owner (K,)`` leaf cluster ids, all in
+    the same px as ``base``; ``size`` tree height and ``spacing`` chain node spacing (px).
+    Returns ``parents (N,)`` and ``pos (N, 2)``; node 0 is the base.
+    """
+    meet = meeting_points(hier, p0)
+    place = np.array([meet[c] if c in meet else (p0[m].mean(0) if len(m) else base)
+                      for c, m in enumerate(hier.members)], float)
+    # trunk top: on the vertical through the base, at the lower crown (85% of tracks above it)
+    y_top = min(max(place[0, 1], float(np.quantile(p0[:, 1], 0.85))), base[1] - 0.15 * size)
+    place[0] = [base[0], y_top]
+    parents, pos = [-1], [np.asarray(base, float)]
+    node_of = {}
+
+    def chain(a: int, b_xy: np.ndarray) -> int:
+        """Append a straight chain from node ``a`` to ``b_xy``; return the last node's index."""
+        n = max(1, int(np.ceil(np.linalg.norm(b_xy - pos[a]) / spacing)))
+        start = pos[a]
+        last = a
+        for k in range(1, n + 1):
+            parents.append(last)
+            pos.append(start + (b_xy - start) * k / n)
+            last = len(pos) - 1
+        return last
+
+    from .skeleton2d import topological_order
+    for c in topological_order(hier.parent):
+        p = hier.parent[c]
+        node_of[c] = chain(0 if p < 0 else node_of[p], place[c])
+    # twig ends grow from their leaf cluster like a spanning tree: each (nearest first) hangs from
+    # the closest node already placed for that cluster, so a big cluster is no star of twigs
+    for c in np.unique(owner):
+        mine = twigs[owner == c]
+        anchors = [node_of[int(c)]]
+        order = np.argsort(np.linalg.norm(mine - pos[anchors[0]], axis=1))
+        for xy in mine[order]:
+            near = min(anchors, key=lambda a: float(np.sum((pos[a] - xy) ** 2)))
+            anchors.append(chain(near, np.asarray(xy, float)))
+    return np.array(parents, np.int32), np.array(pos)
 
 
 def trunk_base(ridge: np.ndarray, evidence: np.ndarray, mask: np.ndarray) -> tuple[int, int]:
@@ -298,45 +344,17 @@ def trunk_base(ridge: np.ndarray, evidence: np.ndarray, mask: np.ndarray) -> tup
     return x, int(y)
 
 
-def traced_skeleton(tracks: Tracks, hier: Hierarchy, outline: Outline, maps: AppearanceMaps,
-                    params: TraceParams | None = None,
-                    progress: ProgressFn | None = None) -> Skeleton2D:
-    """Trace the skeleton (see module docstring) and move its nodes with the tracks."""
-    params = params or TraceParams()
-    f = maps.factor
-    mask = maps.mask
+def _trace_paths(params: TraceParams, mask: np.ndarray, rn: np.ndarray, ridge: np.ndarray,
+                 sky: np.ndarray, hier: Hierarchy, p0: np.ndarray, twigs: np.ndarray,
+                 base: tuple[int, int], size: float,
+                 progress: ProgressFn | None) -> tuple[np.ndarray, np.ndarray]:
+    """Steps 3–5 of the module docstring on working-resolution maps; returns (parents, pos px)."""
     h, w = mask.shape
-    ys, _ = np.nonzero(mask)
-    size = float(ys.max() - ys.min() + 1)                      # tree height, working px
-    ev = bark_evidence(maps)
-    ridge, ridge_scale = ridge_filter(ev, params.ridge_scales)
-    inside_r = ridge[mask]
-    warnings = []
-    rscale = float(np.percentile(inside_r, 99)) if inside_r.size else 0.0
-    rmax = float(inside_r.max()) if inside_r.size else 0.0
-    rn = np.clip(ridge / rscale, 0, 1) if rscale > 1e-6 else np.zeros_like(ridge)
-    if rscale > 1e-6 and params.local_ridge > 0:
-        # faint limbs in the crown count relative to their surroundings, not to the trunk
-        k = max(3, int(params.local_ridge * size) | 1)
-        local = cv2.dilate(ridge, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k)))
-        rn = np.maximum(rn, np.clip(ridge / np.maximum(local, params.local_floor * rscale), 0, 1))
-    has_evidence = rscale > 1e-6 and float((rn > 0.3).sum()) > 0.02 * size * size / 10
-    sky = sky_likeness(maps)
+    bx, by = base
     cost = 1.0 + params.foliage_cost * (1.0 - rn) ** 2 + params.sky_cost * sky
-    # the ridges' centre lines are cheaper still, so paths along a wide trunk share one line
-    # instead of running side by side (which would fake a split at the base)
+    rmax = float(ridge[mask].max()) if mask.any() else 0.0
     if rmax > 1e-6:   # a small pull toward the ridge crest (no plateau across a wide trunk)
         cost -= 0.5 * np.sqrt(ridge / rmax)
-    bx, by = trunk_base(ridge, ev, mask)
-    if not has_evidence:
-        warnings.append("no bark visible between the leaves: skeleton follows the motion hierarchy "
-                        "with a straight trunk")
-        cost = 1.0 + params.foliage_cost * np.ones_like(cost) + params.sky_cost * sky
-        # trunk prior: cheap vertical corridor above the base
-        xx = np.arange(w)[None, :]
-        corridor = np.exp(-((xx - bx) ** 2) / (2 * (0.03 * size) ** 2)) * (np.arange(h)[:, None] > by - 0.35 * size)
-        cost = cost - params.foliage_cost * corridor
-    report(progress, "skeleton", 0.2)
     G = grid_graph(cost.astype(np.float64), mask)
     root = by * w + bx
     dist, pred = dijkstra(G, directed=False, indices=root, return_predecessors=True)
@@ -354,18 +372,15 @@ def traced_skeleton(tracks: Tracks, hier: Hierarchy, outline: Outline, maps: App
         _, j = cKDTree(np.stack([rx, ry], 1)).query(points)
         return ry[j] * w + rx[j]
 
-    p0 = tracks.points[0] * f
     centroids = np.array([p0[m].mean(0) for m in hier.members if len(m)]).reshape(-1, 2)
-    twigs = foliage_targets(hier, p0, max(params.twig_tracks, len(p0) // params.max_twigs))
     foliage = snap(np.vstack([centroids, twigs]))
     # a foliage target on visible bark is no twig end: the branch under it is traced already
     foliage = foliage[rn.ravel()[foliage] < 0.5]
     keep = set(int(t) for t in foliage)
     targets = [int(t) for t in foliage]
     targets += [int(t) for t in snap(np.array(list(meeting_points(hier, p0).values())).reshape(-1, 2))]
-    if has_evidence:
-        thr = max(0.3, float(np.percentile(rn[mask], 90)))
-        targets += ridge_targets((rn > thr) & mask, root, dist, params.min_fragment * size)
+    thr = max(0.3, float(np.percentile(rn[mask], 90)))
+    targets += ridge_targets((rn > thr) & mask, root, dist, params.min_fragment * size)
     targets = [t for t in targets if t != root and np.isfinite(dist[t])]
     # merge radius: a share of the tree's size, wider across thick visible branches
     body = ((rn > 0.3) & mask).astype(np.uint8)
@@ -373,6 +388,37 @@ def traced_skeleton(tracks: Tracks, hier: Hierarchy, outline: Outline, maps: App
     radius = np.maximum(params.merge_radius * size, 1.5 * half_width + 1.0)
     parent_px = path_tree(pred, dist, cost.ravel(), root, targets, w, np.round(radius).astype(int).ravel())
     parents, pos = simplify_tree(parent_px, root, keep, w, params.spacing * size, params.min_spur * size)
+    return parents, pos
+
+
+def traced_skeleton(tracks: Tracks, hier: Hierarchy, outline: Outline, maps: AppearanceMaps,
+                    params: TraceParams | None = None,
+                    progress: ProgressFn | None = None) -> Skeleton2D:
+    """Trace the skeleton (see module docstring) and move its nodes with the tracks."""
+    params = params or TraceParams()
+    f = maps.factor
+    mask = maps.mask
+    ys, _ = np.nonzero(mask)
+    size = float(ys.max() - ys.min() + 1)                      # tree height, working px
+    ev = bark_evidence(maps)
+    ridge = ridge_filter(ev, params.ridge_scales)
+    inside_r = ridge[mask]
+    warnings = []
+    rscale = float(np.percentile(inside_r, 99)) if inside_r.size else 0.0
+    rn = np.clip(ridge / rscale, 0, 1) if rscale > 1e-6 else np.zeros_like(ridge)
+    has_evidence = rscale > 1e-6 and float((rn > 0.3).sum()) > 0.02 * size * size / 10
+    sky = sky_likeness(maps)
+    bx, by = trunk_base(ridge, ev, mask)
+    p0 = tracks.points[0] * f
+    twigs, owner = foliage_targets(hier, p0, max(params.twig_tracks, len(p0) // params.max_twigs))
+    report(progress, "skeleton", 0.2)
+    if has_evidence:
+        parents, pos = _trace_paths(params, mask, rn, ridge, sky, hier, p0, twigs, (bx, by), size, progress)
+    else:
+        warnings.append("no bark visible between the leaves: the skeleton follows the motion "
+                        "hierarchy with a straight trunk")
+        parents, pos = hierarchy_geometry(hier, p0, np.array([bx, by], float), size, twigs, owner,
+                                          params.spacing * size)
     report(progress, "skeleton", 0.7)
     parents, pos = binarize(parents, pos)
     pos = pos / f

@@ -15,8 +15,8 @@ import numpy as np
 
 from .outline import Outline
 
-LK_PARAMS = dict(winSize=(15, 15), maxLevel=3,
-                 criteria=(cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 30, 0.01))
+LK_PARAMS = dict(winSize=(11, 11), maxLevel=3,
+                 criteria=(cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 20, 0.02))
 
 
 @dataclass
@@ -32,6 +32,8 @@ class TrackParams:
                                   # track grabbed by something passing in front (at least 6x its usual)
     neighbours: int = 8           # tracks compared against for the outlier test
     stabilize: bool = True        # remove camera motion using features outside the outline
+    max_tree_px: int = 480        # track on frames scaled so the outline's larger side is at most
+                                  # this (large and 4K videos: corners and LK cost scale with it)
 
 
 @dataclass
@@ -94,8 +96,15 @@ def lk_forward_backward(prev: np.ndarray, cur: np.ndarray, pts: np.ndarray,
     return p1.reshape(-1, 2), ok
 
 
-def _to_affine3(m: np.ndarray) -> np.ndarray:
-    return np.vstack([m, [0.0, 0.0, 1.0]])
+def nan_median_rows(a: np.ndarray) -> np.ndarray:
+    """Median over axis 1 of ``a (P, K, C)`` ignoring NaN (NaN where a row has none): a fast
+    ``np.nanmedian(a, axis=1)``."""
+    s = np.sort(a, axis=1)                          # NaN sorts last
+    n = (~np.isnan(a)).sum(axis=1)                  # (P, C)
+    lo = np.clip((n - 1) // 2, 0, a.shape[1] - 1)[:, None, :]
+    hi = np.clip(n // 2, 0, a.shape[1] - 1)[:, None, :]
+    med = 0.5 * (np.take_along_axis(s, lo, 1) + np.take_along_axis(s, hi, 1))[:, 0, :]
+    return np.where(n > 0, med, np.nan)
 
 
 def apply_affine(m: np.ndarray, pts: np.ndarray) -> np.ndarray:
@@ -128,6 +137,12 @@ class CameraEstimator:
         if not self.available:
             return self.current
         new, ok = lk_forward_backward(prev, cur, self.pts, self.params.fb_max_error)
+        return self.update_tracked(new, ok, cur)
+
+    def update_tracked(self, new: np.ndarray, ok: np.ndarray, cur: np.ndarray) -> np.ndarray:
+        """Like :meth:`update`, given ``self.pts`` already tracked into ``cur`` (new, ok)."""
+        if not self.available:
+            return self.current
         if ok.sum() >= 8:
             m, inl = cv2.estimateAffinePartial2D(new[ok], self.ref[ok], method=cv2.RANSAC,
                                                  ransacReprojThreshold=1.0, maxIters=2000, confidence=0.99)
@@ -147,24 +162,39 @@ class Tracker:
     def __init__(self, frame0: np.ndarray, outline: Outline, fps: float, start: int = 0,
                  params: TrackParams | None = None):
         self.params = params or TrackParams()
-        gray = cv2.cvtColor(frame0, cv2.COLOR_BGR2GRAY)
-        self.prev = gray
-        pts = detect_corners(gray, outline.mask, self.params)
-        self.fps, self.start, self.size = fps, start, (gray.shape[1], gray.shape[0])
         x0, y0, x1, y1 = outline.bbox
         self.crown = float(max(x1 - x0, y1 - y0))
-        self.raw = pts.copy()                       # current image positions
+        # working scale: LK runs on frames scaled by s; every stored position is in frame px
+        self.s = min(1.0, self.params.max_tree_px / max(self.crown, 1.0))
+        gray = self._gray(frame0)
+        mask = outline.mask
+        if self.s < 1.0:
+            mask = cv2.resize(mask.astype(np.uint8), (gray.shape[1], gray.shape[0]),
+                              interpolation=cv2.INTER_NEAREST) > 0
+        self.prev = gray
+        raw = detect_corners(gray, mask, self.params)
+        pts = (raw / self.s).astype(np.float32)
+        self.fps, self.start, self.size = fps, start, (frame0.shape[1], frame0.shape[0])
+        self.raw = raw                              # current positions in the working image
         self.points = [pts.copy()]
         self.valid = [np.ones(len(pts), bool)]
         self.camera = [np.array([[1.0, 0, 0], [0, 1.0, 0]])]
-        self.intensity = gray[np.clip(pts[:, 1].round().astype(int), 0, gray.shape[0] - 1),
-                              np.clip(pts[:, 0].round().astype(int), 0, gray.shape[1] - 1)].astype(np.float32)
-        self.cam = CameraEstimator(gray, outline.mask, self.params) if self.params.stabilize else None
+        full = cv2.cvtColor(frame0, cv2.COLOR_BGR2GRAY)
+        self.intensity = full[np.clip(pts[:, 1].round().astype(int), 0, full.shape[0] - 1),
+                              np.clip(pts[:, 0].round().astype(int), 0, full.shape[1] - 1)].astype(np.float32)
+        self.cam = CameraEstimator(gray, mask, self.params) if self.params.stabilize else None
         self.alive = np.ones(len(pts), bool)
         self.nbr = self._neighbours(pts)
         self.step = np.full((len(pts), 2), np.nan, np.float32)   # last stabilized step, px
         self.jerk = np.zeros(len(pts), np.float32)               # running mean |Δ step|, px
         self.resid = [np.zeros(len(pts), np.float32)]            # per frame: motion beyond neighbours
+
+    def _gray(self, frame: np.ndarray) -> np.ndarray:
+        """Working grey image from a BGR frame ``(H, W, 3)`` or a grey one ``(H, W)``."""
+        gray = cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY) if frame.ndim == 3 else frame
+        if self.s < 1.0:
+            gray = cv2.resize(gray, None, fx=self.s, fy=self.s, interpolation=cv2.INTER_LINEAR)
+        return gray
 
     def _neighbours(self, pts: np.ndarray) -> np.ndarray:
         k = min(self.params.neighbours, max(len(pts) - 1, 0))
@@ -175,18 +205,25 @@ class Tracker:
         return idx[:, 1:]
 
     def feed(self, frame: np.ndarray) -> None:
-        """Track every live point into ``frame`` (BGR uint8)."""
-        gray = cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY)
-        cam = self.cam.update(self.prev, gray) if self.cam is not None else self.camera[0]
-        new, ok = lk_forward_backward(self.prev, gray, self.raw, self.params.fb_max_error)
+        """Track every live point into ``frame`` (BGR ``(H, W, 3)`` or grey ``(H, W)`` uint8)."""
+        gray = self._gray(frame)
+        # one LK call for tree and background corners: the pyramids are built once per frame
+        n = len(self.raw)
+        bg = self.cam.pts if self.cam is not None and self.cam.available else np.zeros((0, 2), np.float32)
+        new, ok = lk_forward_backward(self.prev, gray, np.vstack([self.raw, bg]).astype(np.float32),
+                                      self.params.fb_max_error)
+        cam = self.cam.update_tracked(new[n:], ok[n:], gray) if self.cam is not None else self.camera[0]
+        cam = np.array(cam, float)
+        cam[:, 2] /= self.s           # the working image's affine, in frame px
+        new, ok = new[:n], ok[:n]
         self.alive &= ok
         self.raw = np.where(self.alive[:, None], new, self.raw).astype(np.float32)
-        stab = apply_affine(cam, self.raw).astype(np.float32)
+        stab = apply_affine(cam, self.raw / self.s).astype(np.float32)
         self._reject_jerks(stab)
         self._reject_outliers(stab)
         self.points.append(stab)
         self.valid.append(self.alive.copy())
-        self.camera.append(np.asarray(cam, float))
+        self.camera.append(cam)
         self.prev = gray
 
     def _reject_jerks(self, stab: np.ndarray) -> None:
@@ -211,9 +248,7 @@ class Tracker:
             return
         disp = stab - self.points[0]
         d_n = np.where(self.alive[self.nbr][..., None], disp[self.nbr], np.nan)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)   # all-NaN rows: no live neighbour
-            med = np.nanmedian(d_n, axis=1)
+        med = nan_median_rows(d_n)
         resid = np.linalg.norm(disp - np.nan_to_num(med), axis=1).astype(np.float32)
         far = np.linalg.norm(disp, axis=1) > 0.5 * self.crown
         thr = self.params.outlier_frac * self.crown

@@ -107,3 +107,45 @@ def iter_frames(info: VideoInfo, start: int = 0, stop: int | None = None) -> Ite
             yield frame
     finally:
         cap.release()
+
+
+def prefetch(frames: Iterator[np.ndarray], depth: int = 4) -> Iterator[np.ndarray]:
+    """Decode ahead in a background thread (OpenCV releases the GIL), keeping ``depth`` frames.
+
+    Errors in the reader are re-raised in the consumer; closing the generator stops the reader.
+    """
+    import queue
+    import threading
+
+    q: queue.Queue = queue.Queue(maxsize=depth)
+    stop = threading.Event()
+    done = object()
+
+    def reader():
+        try:
+            for f in frames:
+                while not stop.is_set():
+                    try:
+                        q.put(f, timeout=0.1)
+                        break
+                    except queue.Full:
+                        continue
+                if stop.is_set():
+                    return
+            q.put(done)
+        except BaseException as exc:  # hand it to the consumer
+            q.put(exc)
+
+    th = threading.Thread(target=reader, name="tree_from_video-decode", daemon=True)
+    th.start()
+    try:
+        while True:
+            item = q.get()
+            if item is done:
+                return
+            if isinstance(item, BaseException):
+                raise item
+            yield item
+    finally:
+        stop.set()
+        th.join(timeout=5)

@@ -117,3 +117,15 @@ def test_camera_motion_removal_recovers_known_shift():
     # a point at p in the moved image is at p + (1.5, -2.0) in frame 1
     assert m[:, 2] == pytest.approx([1.5, -2.0], abs=0.1)
     assert m[:, :2] == pytest.approx(np.eye(2), abs=0.01)
+
+
+def test_nan_median_rows_matches_numpy():
+    rng = np.random.default_rng(0)
+    a = rng.normal(size=(50, 7, 2))
+    a[rng.random(a.shape) < 0.3] = np.nan
+    a[3] = np.nan
+    import warnings
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        ref = np.nanmedian(a, axis=1)
+    assert np.allclose(trk.nan_median_rows(a), ref, equal_nan=True)
