@@ -22,34 +22,42 @@ def to_image(points: np.ndarray, cam: np.ndarray) -> np.ndarray:
     return points @ inv[:, :2].T + inv[:, 2]
 
 
-def draw_frame(img: np.ndarray, skel: Skeleton2D, tracks: Tracks, t: int) -> np.ndarray:
-    """Draw valid tracks (small dots) and the skeleton at frame ``t`` on a copy of ``img``."""
-    out = img.copy()
+def draw_frame(img: np.ndarray, skel: Skeleton2D, tracks: Tracks, t: int, zoom: int = 1) -> np.ndarray:
+    """Draw valid tracks (small green dots) and the skeleton at frame ``t`` on a copy of ``img``,
+    enlarged ``zoom`` times (small videos stay readable). Edges are coloured by branching level;
+    branch points and tips are marked."""
+    out = cv2.resize(img, None, fx=zoom, fy=zoom, interpolation=cv2.INTER_LINEAR) if zoom > 1 else img.copy()
     cam = tracks.camera[t]
-    pts = to_image(tracks.points[t][tracks.valid[t]], cam)
+    pts = to_image(tracks.points[t][tracks.valid[t]], cam) * zoom
     for x, y in np.round(pts).astype(int):
-        cv2.circle(out, (x, y), 1, (60, 255, 60), -1, cv2.LINE_AA)
-    nodes = to_image(skel.nodes2d[t].astype(np.float64), cam)
-    thick = max(1, int(round(img.shape[0] / 300)))
+        cv2.circle(out, (x, y), 1, (60, 255, 60), -1)
+    nodes = to_image(skel.nodes2d[t].astype(np.float64), cam) * zoom
+    thick = max(2, int(round(out.shape[0] / 360)))
+    fixed = np.round(nodes * 16).astype(int)
     for p, c in skel.edges():
         col = LEVEL_COLOURS[min(int(skel.level[c]), len(LEVEL_COLOURS) - 1)]
-        a = tuple(np.round(nodes[p] * 16).astype(int))
-        b = tuple(np.round(nodes[c] * 16).astype(int))
-        cv2.line(out, a, b, col, thick + 1, cv2.LINE_AA, shift=4)
-    for i, (x, y) in enumerate(nodes):
-        cv2.circle(out, (int(round(x * 16)), int(round(y * 16))), (thick + 1) * 16, (255, 255, 255), -1,
-                   cv2.LINE_AA, shift=4)
+        cv2.line(out, tuple(fixed[p]), tuple(fixed[c]), (20, 20, 20), thick + 2, cv2.LINE_AA, shift=4)
+        cv2.line(out, tuple(fixed[p]), tuple(fixed[c]), col, thick, cv2.LINE_AA, shift=4)
+    n_kids = np.bincount(skel.parents[skel.parents >= 0], minlength=skel.n_nodes)
+    for i in np.flatnonzero(n_kids != 1):
+        cv2.circle(out, tuple(fixed[i]), (thick + 1) * 16, (255, 255, 255), -1, cv2.LINE_AA, shift=4)
     return out
+
+
+def overlay_zoom(height: int) -> int:
+    """Enlargement for overlays: small videos (e.g. 360 px) are drawn 2× so lines stay readable."""
+    return int(min(3, max(1, round(720 / max(height, 1)))))
 
 
 def write_overlays(info: VideoInfo, start: int, skel: Skeleton2D, tracks: Tracks, png_path: str,
                    mp4_path: str | None, progress: ProgressFn | None = None) -> None:
     """Write ``png_path`` (frame 1) and, if given, ``mp4_path`` (every frame), atomically."""
     n = tracks.n_frames
+    zoom = overlay_zoom(info.height)
     writer = tmp = None
     try:
         for t, frame in enumerate(iter_frames(info, start, start + n)):
-            img = draw_frame(frame, skel, tracks, t)
+            img = draw_frame(frame, skel, tracks, t, zoom)
             if t == 0:
                 fd, tmp_png = tempfile.mkstemp(suffix=".png", dir=os.path.dirname(os.path.abspath(png_path)))
                 os.close(fd)
