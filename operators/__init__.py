@@ -1,14 +1,4 @@
 """Blender operators (the thin bpy layer over ``core``)."""
-from . import skeleton_op
+import bpy
 
-_modules = (skeleton_op,)
-
-
-def register():
-    for m in _modules:
-        m.register()
-
-
-def unregister():
-    for m in reversed(_modules):
-        m.unregister()
+register, unregister = bpy.utils.register_submodule_factory(__name__, ["skeleton_op"])

@@ -45,11 +45,4 @@ class TREE_OT_trace_skeleton(bpy.types.Operator):
 classes = (TREE_OT_trace_skeleton,)
 
 
-def register():
-    for c in classes:
-        bpy.utils.register_class(c)
-
-
-def unregister():
-    for c in reversed(classes):
-        bpy.utils.unregister_class(c)
+register, unregister = bpy.utils.register_classes_factory(classes)

@@ -1,14 +1,4 @@
-"""The "Tree from Video" sidebar panel and its scene properties."""
-from . import panel, properties
+"""The "Tree from Video" sidebar panel and its scene properties (registered in this order)."""
+import bpy
 
-_modules = (properties, panel)
-
-
-def register():
-    for m in _modules:
-        m.register()
-
-
-def unregister():
-    for m in reversed(_modules):
-        m.unregister()
+register, unregister = bpy.utils.register_submodule_factory(__name__, ["properties", "panel"])

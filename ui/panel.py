@@ -24,11 +24,4 @@ class TREE_PT_main(bpy.types.Panel):
 classes = (TREE_PT_main,)
 
 
-def register():
-    for c in classes:
-        bpy.utils.register_class(c)
-
-
-def unregister():
-    for c in reversed(classes):
-        bpy.utils.unregister_class(c)
+register, unregister = bpy.utils.register_classes_factory(classes)
