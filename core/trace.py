@@ -1,19 +1,21 @@
-"""The default ``traced`` 2D skeleton: branches traced in the image, hierarchy as the crown's map.
+"""The default ``traced`` 2D skeleton: branches traced in the image, the hierarchy as the crown's map.
 
 1. Bark evidence ``E = dark · steady``: the share of frames a pixel is dark times
    ``exp(-std / s)`` (foliage flickers, bark does not), from :class:`AppearanceMaps`.
 2. Ridges: multi-scale Hessian ridge filter of E (``σ² · max(0, −λ_min)``, max over scales).
 3. A cost per pixel, low on ridges, higher in foliage, highest on bright, steady, smooth
    pixels (sky seen through the crown); pixels outside the outline are not in the graph.
-4. Shortest paths (Dijkstra, 8-connected) from the trunk base to targets: the far ends of
-   traced ridge fragments and the centroids of the hierarchy's leaf clusters. The union of the
-   paths is a tree: internal hierarchy clusters land where their children's paths meet.
+4. Shortest paths (Dijkstra, 8-connected) from the trunk base to targets: the clusters of the
+   normalized-cut hierarchy (centroids, and the points where two sibling clusters meet), twig
+   ends below its finest level (each leaf cluster split by k-means) and the far ends of traced
+   ridge fragments. The union of the paths is a tree; a path that comes within a merge radius of
+   the tree (wider across thick bark) joins it, so a wide trunk gives one chain, not parallel lines.
 5. The pixel tree is cut into chains between the root, branch points and tips, resampled every
-   ``spacing`` px, and made binary.
+   ``spacing`` px, short spurs pruned, and made binary.
 
-When no bark evidence exists (a dense, front-lit crown), the same construction runs with the
-hierarchy's clusters as targets and a trunk prior (a straight climb from the base), so a valid
-skeleton always comes out.
+When no bark evidence exists (a dense, front-lit crown), the skeleton is built from the
+hierarchy alone (:func:`hierarchy_geometry`: a straight trunk, clusters where their children
+meet, twigs grown as a spanning tree), so a valid skeleton always comes out, with a warning.
 """
 from __future__ import annotations
 
