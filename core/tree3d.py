@@ -1,0 +1,96 @@
+"""The animated 3D tree handed from the core to Blender and to files.
+
+World axes follow Blender's front view: x right, y away from the camera (depth), z up, origin at
+the trunk base. The core lifts and animates in pixels of frame 1 (:func:`image_to_plane`); the
+tree is then scaled to metres so it stands ``height_m`` tall.
+"""
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .model import atomic_savez
+
+FORMAT = "tree_from_video.tree3d"
+VERSION = 1
+
+
+@dataclass
+class Tree3D:
+    """``parents (N,)`` int32 (-1 root = trunk base, node 0); ``nodes3d (F, N, 3)`` float32 metres
+    for every frame; ``radius (N,)`` float32 metres (branch radius at each node); ``level (N,)``
+    int32 branching order; ``fps`` frames per second; ``name`` shown in Blender."""
+
+    parents: np.ndarray
+    nodes3d: np.ndarray
+    radius: np.ndarray
+    level: np.ndarray
+    fps: float
+    name: str = "Tree"
+    meta: dict = field(default_factory=dict)
+
+    @property
+    def n_nodes(self) -> int:
+        return len(self.parents)
+
+    @property
+    def n_frames(self) -> int:
+        return self.nodes3d.shape[0]
+
+    def edges(self) -> np.ndarray:
+        """``(N-1, 2)`` (parent, child) pairs: one bone per edge, named after the child node."""
+        c = np.flatnonzero(self.parents >= 0)
+        return np.stack([self.parents[c], c], axis=1)
+
+
+def pipe_radii(parents: np.ndarray, tip_radius: float, exponent: float = 2.0) -> np.ndarray:
+    """Pipe-model radii: tips get ``tip_radius``; ``r_parent^e = Σ r_child^e`` (e ≈ 2), and a node
+    on a chain (one child) keeps its child's radius. Returns ``(N,)``."""
+    from .skeleton2d import topological_order
+    r = np.zeros(len(parents))
+    has_child = np.zeros(len(parents), bool)
+    has_child[parents[parents >= 0]] = True
+    r[~has_child] = tip_radius ** exponent
+    acc = np.where(has_child, 0.0, r)
+    for n in topological_order(parents)[::-1]:       # leaves first
+        p = parents[n]
+        if p >= 0:
+            acc[p] += acc[n]
+    return (acc ** (1.0 / exponent)).astype(np.float32)
+
+
+def image_to_plane(xy_px: np.ndarray, base_px: np.ndarray) -> np.ndarray:
+    """Image pixels ``(..., 2)`` (x right, y down) → points ``(..., 3)`` in the plane through the
+    trunk: x right and z up in pixels from the trunk base, depth y = 0."""
+    out = np.zeros(xy_px.shape[:-1] + (3,), np.float64)
+    out[..., 0] = xy_px[..., 0] - base_px[0]
+    out[..., 2] = base_px[1] - xy_px[..., 1]
+    return out
+
+
+def plane_to_image(p: np.ndarray, base_px: np.ndarray) -> np.ndarray:
+    """Orthographic projection along depth: points ``(..., 3)`` (px from the base) → image px ``(..., 2)``."""
+    return np.stack([p[..., 0] + base_px[0], base_px[1] - p[..., 2]], axis=-1)
+
+
+def save_tree(path: str | os.PathLike, tree: Tree3D) -> None:
+    """Write ``tree`` as ``.npz`` (arrays + JSON metadata), atomically; no pickle."""
+    meta = {"format": FORMAT, "version": VERSION, "name": tree.name, **tree.meta}
+    atomic_savez(path, parents=tree.parents.astype(np.int32), nodes3d=tree.nodes3d.astype(np.float32),
+                 radius=tree.radius.astype(np.float32), level=tree.level.astype(np.int32),
+                 fps=np.float64(tree.fps), meta_json=np.array(json.dumps(meta)))
+
+
+def load_tree(path: str | os.PathLike) -> Tree3D:
+    with np.load(os.fspath(path), allow_pickle=False) as z:
+        meta = json.loads(str(z["meta_json"]))
+        if meta.get("format") != FORMAT:
+            from .errors import InputError
+            raise InputError(f"'{path}' is not a Tree from Video 3D tree file")
+        name = meta.pop("name", "Tree")
+        return Tree3D(z["parents"].astype(np.int32), z["nodes3d"].astype(np.float32),
+                      z["radius"].astype(np.float32), z["level"].astype(np.int32), float(z["fps"]),
+                      name, meta)
