@@ -87,3 +87,40 @@ def score(skel_parents, skel_nodes2d, truth, frame_step: int = 4) -> Score:
         ferrs.append(abs(dominant_frequency(xs, fps) - dominant_frequency(xt, fps)))
     return Score(c1, float(call), cov, float(np.median(corrs)) if corrs else 0.0,
                  float(np.median(ferrs)) if ferrs else 99.0, len(skel_parents))
+
+
+def sample_edges_3d(nodes: np.ndarray, parents: np.ndarray, step: float = 1.0) -> np.ndarray:
+    """Points every ``step`` units along every edge of ``nodes (N, 3)``."""
+    pts, _ = sample_edges(nodes, parents, step)
+    return pts
+
+
+def chamfer_3d(a: np.ndarray, b: np.ndarray, height: float) -> float:
+    """Symmetric mean nearest-point distance between point sets ``a`` and ``b`` / height."""
+    return float(0.5 * (cKDTree(b).query(a)[0].mean() + cKDTree(a).query(b)[0].mean()) / height)
+
+
+def lift_in_truth_frame(nodes_plane: np.ndarray, base_px: np.ndarray, truth: dict) -> np.ndarray:
+    """Our plane coordinates (px from our trunk base) → the truth's frame (x from cx, z from ground)."""
+    out = np.array(nodes_plane, float)
+    out[..., 0] += base_px[0] - float(truth["cx"])
+    out[..., 2] += float(truth["ground_v"]) - base_px[1]
+    return out
+
+
+def lift_scores(nodes_plane: np.ndarray, parents: np.ndarray, base_px: np.ndarray, truth: dict) -> dict:
+    """3D chamfer of a lifted frame-1 skeleton vs the true tree (best of both depth signs), the true
+    tree flattened to depth 0 as the baseline, and depth/width extents."""
+    h = float(truth["height_px"])
+    tn = truth["nodes3d"][0]
+    ts = sample_edges_3d(tn, truth["parents"])
+    ours = lift_in_truth_frame(nodes_plane, base_px, truth)
+    os_ = sample_edges_3d(ours, parents)
+    mirrored = os_ * np.array([1.0, -1.0, 1.0])
+    flat = ts * np.array([1.0, 0.0, 1.0])
+    return {
+        "chamfer": min(chamfer_3d(os_, ts, h), chamfer_3d(mirrored, ts, h)),
+        "flat_truth": chamfer_3d(flat, ts, h),
+        "depth_ratio": float(np.ptp(ours[:, 1]) / max(np.ptp(ours[:, 0]), 1e-9)),
+        "true_depth_ratio": float(np.ptp(tn[:, 1]) / max(np.ptp(tn[:, 0]), 1e-9)),
+    }

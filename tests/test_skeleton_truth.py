@@ -5,8 +5,6 @@ Bars (issue "Foundation"): traced frame-1 and all-frame chamfer ≤ 2.5% of tree
 truth (median Pearson ≥ 0.85; ≥ 0.8 on the gentle variant) and their dominant sway frequency is
 within 0.1 Hz.
 """
-import os
-
 import numpy as np
 import pytest
 from scipy.spatial import cKDTree
@@ -15,31 +13,8 @@ from tree_from_video.core import pipeline
 from tree_from_video.core.skeleton2d import children_lists
 
 from groundtruth import score
-from samples import generate, load_truth
 
-BAR_VARIANTS = ("broad", "conifer", "sparse", "hard", "grey", "gentle")
-ALL_VARIANTS = BAR_VARIANTS + ("dense",)
-
-
-@pytest.fixture(scope="session")
-def runs(tmp_path_factory):
-    """{variant: {"truth", "folder", "traced": Result, "paper": Result}} for every variant."""
-    base = tmp_path_factory.mktemp("variants")
-    out = {}
-    for v in ALL_VARIANTS:
-        folder = generate(v, str(base / v))
-        entry = {"truth": load_truth(folder), "folder": folder}
-        for kind in ("traced", "paper"):
-            entry[kind] = pipeline.run(os.path.join(folder, "video.mp4"), os.path.join(folder, "outline.json"),
-                                       pipeline.Settings(skeleton=kind))
-        out[v] = entry
-    return out
-
-
-@pytest.fixture(scope="session")
-def scores(runs):
-    return {v: {k: score(e[k].skeleton.parents, e[k].skeleton.nodes2d, e["truth"]) for k in ("traced", "paper")}
-            for v, e in runs.items()}
+from conftest import ALL_VARIANTS, BAR_VARIANTS
 
 
 def test_print_table(scores, capsys):
