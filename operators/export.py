@@ -1,0 +1,205 @@
+"""Export just the tree (its armature and branch mesh) to FBX, glTF binary or USD, atomically.
+
+Each exporter writes a hidden temporary file in the target's folder, which replaces the target
+(``os.replace``) only when the export succeeded; on failure the temporary file is deleted and an
+existing target is untouched. An existing target is refused unless ``overwrite=True``. Exporter
+options are passed only if this Blender's exporter has them (feature checks, not versions), and
+the export runs over the frame range of the armature's action (scene frames, restored after).
+"""
+from __future__ import annotations
+
+import os
+import uuid
+from contextlib import contextmanager
+from typing import Iterable
+
+import bpy
+
+from ..core.errors import InputError
+from .action_api import action_fcurves
+from .scene_build import deselect_all, set_frame_range
+
+
+class ExportError(RuntimeError):
+    """The exporter failed; the message names the format and the file."""
+
+
+def has_usd() -> bool:
+    """True if this Blender was built with USD (Debian's Blender 4.3 is not)."""
+    return _operator_properties(bpy.ops.wm, "usd_export") is not None
+
+
+def export_fbx(path: str | os.PathLike, objects: Iterable[bpy.types.Object], *, overwrite: bool = False,
+               context=None) -> str:
+    """Write ``objects`` (the tree's armature and mesh) to ``path`` (``.fbx``) and return the path.
+
+    Baked animation with exactly one key per frame and bone (``bake_anim_simplify_factor=0``,
+    start/end keys forced, step 1), no leaf bones added (bone count stays exact), only the
+    rig's current action."""
+    options = dict(use_selection=True, object_types={"ARMATURE", "MESH"}, add_leaf_bones=False,
+                   bake_anim=True, bake_anim_use_all_bones=True, bake_anim_use_nla_strips=False,
+                   bake_anim_use_all_actions=False, bake_anim_force_startend_keying=True,
+                   bake_anim_step=1.0, bake_anim_simplify_factor=0.0, use_armature_deform_only=False,
+                   use_mesh_modifiers=False, path_mode="AUTO", batch_mode="OFF")
+    return _export("FBX", bpy.ops.export_scene, "fbx", path, (".fbx",), objects, options, overwrite, context)
+
+
+def export_gltf(path: str | os.PathLike, objects: Iterable[bpy.types.Object], *, overwrite: bool = False,
+                context=None) -> str:
+    """Write ``objects`` to a binary glTF ``path`` (``.glb``) and return the path.
+
+    One skin (every bone a joint), the rig's current action sampled at every frame (no
+    optimisation that would drop constant keys), times starting at 0 s
+    (``export_anim_slide_to_zero``, where this Blender's exporter has it)."""
+    options = dict(export_format="GLB", use_selection=True, export_animations=True,
+                   export_animation_mode="ACTIVE_ACTIONS", export_frame_range=True, export_frame_step=1,
+                   export_force_sampling=True, export_anim_slide_to_zero=True,
+                   export_optimize_animation_size=False, export_optimize_animation_keep_anim_armature=True,
+                   export_optimize_animation_keep_anim_object=False, export_def_bones=False,
+                   export_leaf_bone=False, export_skins=True, export_apply=False, export_yup=True,
+                   export_cameras=False, export_lights=False, export_extras=False)
+    return _export("glTF", bpy.ops.export_scene, "gltf", path, (".glb",), objects, options, overwrite, context)
+
+
+def export_usd(path: str | os.PathLike, objects: Iterable[bpy.types.Object], *, overwrite: bool = False,
+               context=None) -> str:
+    """Write ``objects`` to ``path`` (``.usd``/``.usda``/``.usdc``) and return the path.
+
+    A UsdSkel skeleton with one joint per bone and a SkelAnimation sampled at every frame.
+    Raises :class:`InputError` if this Blender has no USD exporter."""
+    if not has_usd():
+        raise InputError(f"cannot write '{os.fspath(path)}': this Blender was built without USD "
+                         f"(Blender {bpy.app.version_string} has no wm.usd_export, as in Debian's "
+                         "packages); export FBX or glTF instead, or use a blender.org build for USD")
+    options = dict(selected_objects_only=True, export_animation=True, export_armatures=True,
+                   only_deform_bones=False, export_meshes=True, export_materials=True,
+                   export_uvmaps=True, export_normals=True, export_lights=False, export_cameras=False,
+                   export_textures_mode="KEEP", export_textures=False, generate_preview_surface=True,
+                   evaluation_mode="RENDER")
+    return _export("USD", bpy.ops.wm, "usd_export", path, (".usd", ".usda", ".usdc"), objects, options,
+                   overwrite, context)
+
+
+# ----------------------------------------------------------------------------- common
+
+def _operator_properties(module, name: str):
+    """Property identifiers of ``module.name`` → ``{identifier: rna property}``, or None if absent."""
+    if name not in dir(module):
+        return None
+    try:
+        rna = getattr(module, name).get_rna_type()
+    except KeyError:
+        return None
+    return {p.identifier: p for p in rna.properties}
+
+
+def _supported(props: dict, options: dict) -> dict:
+    """``options`` this exporter knows, enum values included (e.g. 'ACTIVE_ACTIONS' from 4.0 on)."""
+    out = {}
+    for key, value in options.items():
+        prop = props.get(key)
+        if prop is None:
+            continue
+        if prop.type == "ENUM" and isinstance(value, str) and value not in prop.enum_items.keys():
+            continue
+        out[key] = value
+    return out
+
+
+def _export(fmt: str, module, op_name: str, path, exts: tuple, objects, options: dict, overwrite: bool,
+            context) -> str:
+    context = context or bpy.context
+    path = os.path.abspath(os.fspath(path))
+    objects = [ob for ob in objects if ob is not None]
+    if not path.lower().endswith(exts):
+        raise InputError(f"'{path}' is not a {fmt} file name; use the extension {' or '.join(exts)}")
+    if not objects:
+        raise InputError(f"nothing to export to '{path}'; build the tree first")
+    folder = os.path.dirname(path)
+    if not os.path.isdir(folder):
+        raise InputError(f"folder '{folder}' does not exist; create it or choose another folder")
+    if os.path.exists(path) and not overwrite:
+        raise InputError(f"'{path}' exists; choose another file name or allow overwriting (overwrite=True)")
+    props = _operator_properties(module, op_name)
+    if props is None:
+        raise InputError(f"this Blender has no {fmt} exporter (operator '{op_name}' is missing); enable "
+                         "its add-on in Preferences > Add-ons or export another format")
+    ext = os.path.splitext(path)[1]
+    tmp = os.path.join(folder, f".{os.path.basename(path)}.{uuid.uuid4().hex[:8]}.tmp{ext}")
+    try:
+        with _selected(context, objects), _frame_range(context.scene, objects):
+            result = _run_operator(module, op_name, filepath=tmp, check_existing=False,
+                                   **_supported(props, options))
+        if "FINISHED" not in result:
+            raise ExportError(f"{fmt} export to '{path}' was cancelled by the exporter ({result})")
+        if not os.path.isfile(tmp):
+            raise ExportError(f"{fmt} export to '{path}' wrote no file")
+        os.replace(tmp, path)
+    except BaseException as exc:
+        _remove_quietly(tmp)
+        if isinstance(exc, (InputError, ExportError)) or not isinstance(exc, Exception):
+            raise
+        if isinstance(exc, OSError):
+            raise ExportError(f"cannot write '{path}' ({exc.strerror or exc}); check the folder's "
+                              "permissions and free space") from exc
+        raise ExportError(f"{fmt} export to '{path}' failed: {exc}") from exc
+    return path
+
+
+def _run_operator(module, op_name: str, **kwargs) -> set:
+    """Call the exporter operator ``module.op_name(**kwargs)`` (one seam for tests)."""
+    return getattr(module, op_name)(**kwargs)
+
+
+def _remove_quietly(path: str) -> None:
+    try:
+        os.remove(path)
+    except OSError:
+        pass
+
+
+@contextmanager
+def _selected(context, objects):
+    """Select exactly ``objects`` (first armature active) in the view layer; restore afterwards."""
+    view_layer = context.view_layer
+    before = [ob for ob in view_layer.objects if ob is not None and ob.select_get()]
+    active = view_layer.objects.active
+    missing = [ob.name for ob in objects if view_layer.objects.get(ob.name) is None]
+    if missing:
+        raise InputError(f"{', '.join(missing)} not in the current view layer; include the tree's collection")
+    try:
+        for ob in before:
+            ob.select_set(False)
+        for ob in objects:
+            ob.select_set(True)
+        view_layer.objects.active = next((ob for ob in objects if ob.type == "ARMATURE"), objects[0])
+        yield
+    finally:
+        deselect_all(view_layer)
+        for ob in before:
+            try:
+                ob.select_set(True)
+            except ReferenceError:
+                pass
+        view_layer.objects.active = active
+
+
+@contextmanager
+def _frame_range(scene, objects):
+    """Set the scene's frame range to the armature action's keys (if any) while exporting."""
+    old = scene.frame_start, scene.frame_end, scene.frame_current
+    rng = None
+    for ob in objects:
+        ad = ob.animation_data
+        if ob.type == "ARMATURE" and ad is not None and ad.action is not None:
+            ranges = [fc.range() for fc in action_fcurves(ad.action)]
+            if ranges:          # Action.frame_range turns one keyed frame into two
+                rng = (int(round(min(r[0] for r in ranges))), int(round(max(r[1] for r in ranges))))
+                break
+    try:
+        if rng is not None:
+            set_frame_range(scene, *rng)
+        yield
+    finally:
+        set_frame_range(scene, old[0], old[1])
+        scene.frame_set(old[2])

@@ -1,0 +1,326 @@
+"""The animated tree in Blender: bone maths by hand, the built armature/keys/mesh, the evaluated pose
+against the input positions, and all-or-nothing building (bpy wheel and real Blender)."""
+import math
+
+import bpy
+import numpy as np
+import pytest
+
+from tree_from_video.core import bones as bn
+from tree_from_video.core.errors import InputError
+from tree_from_video.core.tree3d import Tree3D
+from tree_from_video.operators import action_api, scene_build
+
+from trees import binary_tree, broad_tree, expected, pose_tails, tree_height
+
+S2 = math.sqrt(0.5)
+
+
+@pytest.fixture(autouse=True)
+def empty_scene():
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    yield
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+
+
+@pytest.fixture(scope="module")
+def tree():
+    return broad_tree(60)
+
+
+def _ids():
+    return {attr: set(getattr(bpy.data, attr).keys())
+            for attr in ("objects", "meshes", "armatures", "actions", "materials", "collections")}
+
+
+# ----------------------------------------------------------------------------- bones.py by hand
+
+def _chain(frames):
+    """3 nodes 0-1-2 (two bones), positions per frame."""
+    return np.array([-1, 0, 1]), np.array(frames, np.float64)
+
+
+def test_two_bone_chain_bent_90_degrees_by_hand():
+    # frame 0: straight up; frame 1: the upper bone bends to +x; frame 2: the whole chain lies along +x
+    parents, nodes = _chain([[[0, 0, 0], [0, 0, 1], [0, 0, 2]],
+                             [[0, 0, 0], [0, 0, 1], [1, 0, 1]],
+                             [[0, 0, 0], [1, 0, 0], [2, 0, 0]]])
+    assert bn.bone_names(parents) == ["B001", "B002"]
+    assert bn.bone_parents(parents).tolist() == [-1, 0]
+    # Blender's roll-0 rest matrix of a bone pointing +z: X = +x, Y = +z, Z = -y
+    up = np.array([[1.0, 0, 0], [0, 0, -1], [0, 1, 0]])
+    rest = np.stack([up, up])
+    np.testing.assert_allclose(bn.rest_frames(parents, nodes[0]), rest, atol=1e-12)
+
+    world = bn.world_rotations(parents, nodes)
+    np.testing.assert_allclose(world[0], [[1, 0, 0, 0], [1, 0, 0, 0]], atol=1e-12)
+    # frame 1: +z → +x is +90° about world +y
+    np.testing.assert_allclose(world[1], [[1, 0, 0, 0], [S2, 0, S2, 0]], atol=1e-12)
+
+    local = bn.local_rotations(parents, nodes, rest)
+    assert local.shape == (3, 2, 4)
+    np.testing.assert_allclose(local[0], [[1, 0, 0, 0], [1, 0, 0, 0]], atol=1e-12)
+    # world +y is the bone's -Z: +90° about -Z in bone space
+    np.testing.assert_allclose(local[1], [[1, 0, 0, 0], [S2, 0, 0, -S2]], atol=1e-12)
+    # frame 2: the lower bone turns, the upper one inherits it and stays straight relative to it
+    np.testing.assert_allclose(local[2], [[S2, 0, 0, -S2], [1, 0, 0, 0]], atol=1e-12)
+
+    np.testing.assert_allclose(bn.pose_tails(parents, nodes[0], rest, local), nodes, atol=1e-12)
+
+
+def test_local_rotations_reproduce_positions_through_forward_kinematics():
+    tree = binary_tree(n_bones=31, frames=40, seed=3)
+    rest = bn.rest_frames(tree.parents, tree.nodes3d[0])
+    local = bn.local_rotations(tree.parents, tree.nodes3d, rest)
+    assert local.shape == (40, 31, 4)
+    np.testing.assert_allclose(np.linalg.norm(local, axis=-1), 1.0, atol=1e-12)
+    fk = bn.pose_tails(tree.parents, tree.nodes3d[0], rest, local)
+    assert np.abs(fk - tree.nodes3d).max() < 1e-5 * tree_height(tree)       # float32 input
+
+
+def test_quaternions_are_sign_continuous_and_swings_untwisted():
+    rng = np.random.default_rng(0)
+    q = rng.normal(size=(30, 5, 4))
+    q /= np.linalg.norm(q, axis=-1, keepdims=True)
+    q = np.cumsum(q * 0.1, axis=0)                          # a smooth path ...
+    q /= np.linalg.norm(q, axis=-1, keepdims=True)
+    flipped = q * rng.choice([-1.0, 1.0], size=(30, 5, 1))  # ... with random sign flips
+    c = bn.make_continuous(flipped)
+    assert (np.sum(c[1:] * c[:-1], axis=-1) >= 0).all()
+    np.testing.assert_allclose(np.abs(np.sum(c * q, axis=-1)), 1.0, atol=1e-12)   # same rotations
+    # the swing has no twist: its axis is perpendicular to both directions
+    s = bn.swing(np.array([0.0, 0, 1]), np.array([[1.0, 0, 0], [0, 0, -1]]))
+    np.testing.assert_allclose(s[0], [S2, 0, S2, 0], atol=1e-12)
+    assert abs(s[1, 0]) < 1e-12 and abs(s[1, 3]) < 1e-12                 # 180° about an axis ⟂ z
+
+
+def test_matrix_quaternion_round_trip():
+    rng = np.random.default_rng(1)
+    q = rng.normal(size=(500, 4))
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    q[q[:, 0] < 0] *= -1
+    np.testing.assert_allclose(bn.matrix_to_quat(bn.quat_to_matrix(q)), q, atol=1e-9)
+
+
+def test_degenerate_trees_are_input_errors():
+    with pytest.raises(InputError, match="zero length"):
+        bn.local_rotations(np.array([-1, 0]), np.zeros((2, 2, 3)), np.stack([np.eye(3)]))
+    nodes = np.zeros((2, 2, 3))
+    nodes[:, 1, 2] = 1
+    nodes[1, 1, 0] = np.nan
+    with pytest.raises(InputError, match="non-finite"):
+        bn.world_rotations(np.array([-1, 0]), nodes)
+
+
+# ----------------------------------------------------------------------------- the built scene
+
+def test_build_bones_keys_and_scene_timing(tree):
+    res = scene_build.build_tree(bpy.context, tree, "Tree")
+    rig, coll = res["armature"], res["collection"]
+    assert coll.name == "Tree" and coll.name in bpy.context.scene.collection.children
+    assert {ob.name for ob in coll.objects} == {"Tree Rig", "Tree Branches"}
+    edges = tree.edges()
+    names = [f"B{c:03d}" for c in edges[:, 1]]
+    bones = rig.data.bones
+    assert len(bones) == len(edges) == tree.n_nodes - 1
+    bone_of_node = {int(c): f"B{c:03d}" for c in edges[:, 1]}
+    for (p, c), name in zip(edges, names):
+        b = bones[name]
+        want_parent = bone_of_node.get(int(p))
+        assert (b.parent.name if b.parent else None) == want_parent
+        assert b.use_connect == (want_parent is not None)
+    assert all(pb.rotation_mode == "QUATERNION" for pb in rig.pose.bones)
+
+    F, B = tree.n_frames, len(edges)
+    fcurves = list(action_api.action_fcurves(res["action"]))
+    assert len(fcurves) == 4 * B
+    assert sum(len(fc.keyframe_points) for fc in fcurves) == F * B * 4
+    paths = {(fc.data_path, fc.array_index) for fc in fcurves}
+    assert paths == {(f'pose.bones["{n}"].rotation_quaternion', i) for n in names for i in range(4)}
+    fc = fcurves[7]
+    co = np.empty(2 * F, np.float32)
+    fc.keyframe_points.foreach_get("co", co)
+    np.testing.assert_array_equal(co[0::2], np.arange(1, F + 1))
+    assert {k.interpolation for k in fc.keyframe_points} == {"LINEAR"}
+    assert rig.animation_data.action == res["action"]
+
+    scene = bpy.context.scene
+    assert (scene.frame_start, scene.frame_end) == (1, F)
+    assert scene.render.fps == 24 and scene.render.fps_base == 1.0
+    print(f"\nbuild 234 bones x 60 frames: {res['timings']}")
+
+
+def test_fractional_fps_uses_fps_base(tree):
+    t = Tree3D(tree.parents, tree.nodes3d[:10], tree.radius, tree.level, 29.97)
+    scene_build.build_tree(bpy.context, t, "Tree", mesh=False)
+    r = bpy.context.scene.render
+    assert r.fps == 30
+    assert r.fps / r.fps_base == pytest.approx(29.97, rel=1e-6)
+    assert bpy.context.scene.frame_end == 10
+
+
+def test_evaluated_pose_matches_input_positions(tree):
+    res = scene_build.build_tree(bpy.context, tree, "Tree")
+    names = [f"B{c:03d}" for c in tree.edges()[:, 1]]
+    tol = 1e-4 * tree_height(tree)
+    worst = 0.0
+    for k in (1, 2, 17, 31, 44, 60):
+        bpy.context.scene.frame_set(k)
+        err = np.abs(pose_tails(res["armature"], names) - expected(tree, k)[1]).max()
+        worst = max(worst, err)
+        assert err <= tol, f"frame {k}: tail error {err:.2e} m > {tol:.2e} m"
+    print(f"\nworst tail error {worst:.2e} m (tolerance {tol:.2e} m)")
+
+
+def _evaluated_world_co(ob):
+    dg = bpy.context.evaluated_depsgraph_get()
+    ev = ob.evaluated_get(dg)
+    me = ev.to_mesh()
+    try:
+        co = np.empty(len(me.vertices) * 3, np.float32)
+        me.vertices.foreach_get("co", co)
+    finally:
+        ev.to_mesh_clear()
+    mw = np.array(ev.matrix_world)
+    return co.reshape(-1, 3) @ mw[:3, :3].T + mw[:3, 3]
+
+
+def _segment_distance(p, a, b):
+    ab = b - a
+    t = np.clip(np.sum((p - a) * ab, axis=-1) / np.sum(ab * ab, axis=-1), 0, 1)
+    return np.linalg.norm(p - (a + t[..., None] * ab), axis=-1)
+
+
+def test_evaluated_mesh_follows_the_bones(tree):
+    res = scene_build.build_tree(bpy.context, tree, "Tree")
+    ob = res["mesh"]
+    sides = 8
+    B = len(tree.edges())
+    assert len(ob.data.vertices) == 2 * sides * B
+    assert [g.name for g in ob.vertex_groups] == [f"B{c:03d}" for c in tree.edges()[:, 1]]
+    assert ob.parent == res["armature"] and ob.modifiers[0].type == "ARMATURE"
+    assert ob.modifiers[0].object == res["armature"]
+    assert ob.data.materials[0] == res["material"] and res["material"].node_tree is not None
+    v = ob.data.vertices[2 * sides * 5 + 3]
+    assert [(ob.vertex_groups[g.group].name, g.weight) for g in v.groups] == [(f"B{tree.edges()[5, 1]:03d}", 1.0)]
+    r_head, r_tail = scene_build.branch_radii(tree.parents, tree.radius)
+    reach = 1.5 * np.maximum(r_head, r_tail) + 1e-4                 # ring radius, head overlap
+    vert_bone = np.repeat(np.arange(B), 2 * sides)
+    positions = {}
+    for k in (1, 30, 60):
+        bpy.context.scene.frame_set(k)
+        co = _evaluated_world_co(ob)
+        heads, tails, _ = expected(tree, k)
+        d = _segment_distance(co, heads[vert_bone], tails[vert_bone])
+        assert (d <= reach[vert_bone]).all(), f"frame {k}: a vertex is {d.max():.3f} m from its bone"
+        positions[k] = co
+    moved = np.linalg.norm(positions[30] - positions[1], axis=1).max()
+    assert moved > 0.05, f"the evaluated mesh did not move ({moved} m)"
+
+
+def test_mesh_is_closed_with_outward_normals(tree):
+    me = scene_build.build_tree(bpy.context, tree, "Tree")["mesh"].data
+    edge_index = np.empty(len(me.loops), np.int32)
+    me.loops.foreach_get("edge_index", edge_index)
+    assert (np.bincount(edge_index, minlength=len(me.edges)) == 2).all()     # every edge has 2 faces
+    me.calc_loop_triangles()
+    tri = np.empty(len(me.loop_triangles) * 3, np.int32)
+    me.loop_triangles.foreach_get("vertices", tri)
+    co = np.empty(len(me.vertices) * 3, np.float32)
+    me.vertices.foreach_get("co", co)
+    a, b, c = co.reshape(-1, 3)[tri.reshape(-1, 3)].astype(np.float64).transpose(1, 0, 2)
+    vol = np.bincount(tri.reshape(-1, 3)[:, 0] // 16, np.einsum("ij,ij->i", a, np.cross(b, c)) / 6)
+    assert (vol > 0).all(), "a tube is inside out"
+    uv = np.empty(len(me.loops) * 2, np.float32)
+    me.uv_layers["UVMap"].data.foreach_get("uv", uv)
+    assert np.isfinite(uv).all() and 0 <= uv[0::2].min() and uv[0::2].max() <= 1
+
+
+# ----------------------------------------------------------------------------- all or nothing
+
+def _raise_after(original):
+    def wrapper(*args, **kwargs):
+        original(*args, **kwargs)
+        raise RuntimeError("injected failure")
+    return wrapper
+
+
+@pytest.mark.parametrize("where", ["edit_mode", "keys", "mesh"])
+def test_failure_mid_build_leaves_nothing(tree, monkeypatch, where):
+    before = _ids()
+    scene = bpy.context.scene
+    scene.render.fps, scene.frame_end = 50, 77
+    if where == "edit_mode":
+        monkeypatch.setattr(scene_build, "_edit_bones", _raise_after(scene_build._edit_bones))
+    elif where == "keys":
+        calls = {"n": 0}
+        original = action_api.write_keys
+
+        def flaky(*args):
+            calls["n"] += 1
+            if calls["n"] == 300:
+                raise RuntimeError("injected failure")
+            original(*args)
+        monkeypatch.setattr(action_api, "write_keys", flaky)
+    else:
+        monkeypatch.setattr(scene_build, "_build_mesh", _raise_after(scene_build._build_mesh))
+    with pytest.raises(RuntimeError, match="injected failure"):
+        scene_build.build_tree(bpy.context, tree, "Tree")
+    assert _ids() == before
+    assert bpy.context.mode == "OBJECT"
+    assert (scene.render.fps, scene.frame_start, scene.frame_end) == (50, 1, 77)   # scene settings kept
+
+
+def test_existing_collection_is_replaced_only_when_asked(tree, monkeypatch):
+    first = scene_build.build_tree(bpy.context, tree, "Tree")
+    assert first["armature"].animation_data.action.frame_range[1] == 60
+    after_first = _ids()
+    with pytest.raises(InputError, match="'Tree' already exists"):
+        scene_build.build_tree(bpy.context, tree, "Tree")
+    assert _ids() == after_first
+
+    short = Tree3D(tree.parents, tree.nodes3d[:30], tree.radius, tree.level, tree.fps)
+    # a replacement that fails at the last step leaves the old tree as it was
+    def boom(collection):
+        raise RuntimeError("boom")
+    monkeypatch.setattr(scene_build, "remove_collection", boom)
+    with pytest.raises(RuntimeError, match="boom"):
+        scene_build.build_tree(bpy.context, short, "Tree", replace=True)
+    assert _ids() == after_first
+    monkeypatch.undo()
+
+    res = scene_build.build_tree(bpy.context, short, "Tree", replace=True)
+    assert _ids() == after_first                      # same names: old data gone, new data renamed
+    assert res["armature"].name == "Tree Rig" and res["mesh"].name == "Tree Branches"
+    assert res["armature"].animation_data.action.frame_range[1] == 30
+    assert len(bpy.data.collections["Tree"].objects) == 2
+
+
+def test_bad_inputs_are_refused_before_building(tree):
+    before = _ids()
+    with pytest.raises(InputError, match="frame rate"):
+        scene_build.build_tree(bpy.context, Tree3D(tree.parents, tree.nodes3d, tree.radius, tree.level, 0.0), "T")
+    with pytest.raises(InputError, match="sides"):
+        scene_build.build_tree(bpy.context, tree, "T", sides=2)
+    with pytest.raises(InputError, match="collection name"):
+        scene_build.build_tree(bpy.context, tree, "")
+    assert _ids() == before
+
+
+# ----------------------------------------------------------------------------- timing
+
+def test_timing_127_bones_300_frames_and_full_sample():
+    small = binary_tree(n_bones=127, frames=300)
+    res = scene_build.build_tree(bpy.context, small, "Binary")
+    t = res["timings"]
+    print(f"\n127 bones x 300 frames: rotations {t['rotations']:.3f} s, keys {t['keys']:.3f} s, "
+          f"armature {t['armature']:.3f} s, mesh {t['mesh']:.3f} s, total {t['total']:.3f} s")
+    fcurves = list(action_api.action_fcurves(res["action"]))
+    assert sum(len(fc.keyframe_points) for fc in fcurves) == 127 * 300 * 4
+    # target 0.2 s; the bound leaves room for a loaded 2-core machine but not for per-key Python
+    assert t["rotations"] + t["keys"] < 0.8
+    full = broad_tree(None)
+    res = scene_build.build_tree(bpy.context, full, "Broad")
+    t = res["timings"]
+    print(f"broad sample 234 bones x 180 frames: rotations {t['rotations']:.3f} s, keys {t['keys']:.3f} s, "
+          f"armature {t['armature']:.3f} s, mesh {t['mesh']:.3f} s, total {t['total']:.3f} s")

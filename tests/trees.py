@@ -1,0 +1,86 @@
+"""3D trees for the scene and export tests, and reading poses back out of Blender."""
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+from tree_from_video.core import bones as bn
+from tree_from_video.core.tree3d import Tree3D
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+#: metres per pixel of the synthetic ground truth (its 288 px tree becomes 8.6 m tall)
+SCALE = 0.03
+
+
+def broad_tree(frames: int | None = 60) -> Tree3D:
+    """The committed ``broad`` sample's ground truth (235 nodes, 180 frames, 24 fps) in metres.
+
+    ``truth.npz`` has x right, y depth, z up in pixels (1 unit = 1 px) with the trunk base at the
+    origin (image ``(cx, ground_v)``); here it is scaled by :data:`SCALE` and the frame-0 base is
+    moved to the origin explicitly."""
+    with np.load(os.path.join(ROOT, "sample_videos", "broad", "truth.npz")) as z:
+        nodes = z["nodes3d"].astype(np.float64)
+        if frames is not None:
+            nodes = nodes[:frames]
+        nodes = (nodes - nodes[0, 0]) * SCALE
+        return Tree3D(z["parents"].astype(np.int32), nodes.astype(np.float32),
+                      (z["radius"] * SCALE).astype(np.float32), z["depth_level"].astype(np.int32),
+                      float(z["fps"]), "Broad")
+
+
+def binary_tree(n_bones: int = 127, frames: int = 300, fps: float = 30.0, seed: int = 0) -> Tree3D:
+    """A swaying tree of ``n_bones`` bones: a trunk bone, then binary branching (node ``k`` ≥ 2 is a
+    child of ``k // 2``). Each edge sways about its own axis, so lengths stay exact."""
+    rng = np.random.default_rng(seed)
+    n = n_bones + 1
+    parents = np.array([-1, 0] + [k // 2 for k in range(2, n)], np.int32)
+    depth = np.zeros(n, int)
+    for k in range(1, n):
+        depth[k] = depth[parents[k]] + 1
+    spread = rng.uniform(0.3, 0.8, n) * np.where(np.arange(n) % 2, 1, -1)
+    yaw = rng.uniform(0, 2 * np.pi, n)
+    offset = np.stack([np.sin(spread) * np.cos(yaw), np.sin(spread) * np.sin(yaw), np.cos(spread)], 1)
+    offset[1] = [0, 0, 1]
+    offset *= (1.5 * 0.8 ** depth)[:, None]
+    t = np.arange(frames) / fps
+    angle = 0.15 * np.sin(2 * np.pi * rng.uniform(0.3, 1.2, n)[None] * t[:, None] + rng.uniform(0, 6, n))
+    axis = np.cross(offset, [1.0, 0.3, 0.0])
+    axis /= np.linalg.norm(axis, axis=1, keepdims=True)
+    nodes = np.zeros((frames, n, 3))
+    for k in range(1, n):                                  # parents come first
+        c, s = np.cos(angle[:, k])[:, None], np.sin(angle[:, k])[:, None]
+        v, a = offset[k], axis[k]
+        rotated = v * c + np.cross(a, v) * s + a * (a @ v) * (1 - c)  # Rodrigues
+        nodes[:, k] = nodes[:, parents[k]] + rotated
+    radius = np.full(n, 0.02) + 0.1 * 0.7 ** depth
+    return Tree3D(parents, nodes.astype(np.float32), radius.astype(np.float32), depth.astype(np.int32),
+                  fps, "Binary")
+
+
+def tree_height(tree: Tree3D) -> float:
+    """Height (m) of frame 0: the tolerance scale."""
+    return float(np.ptp(tree.nodes3d[0][:, 2]))
+
+
+def pose_tails(rig, names) -> np.ndarray:
+    """World positions ``(B, 3)`` of the pose bones' tails at the evaluated frame."""
+    mw = np.array(rig.matrix_world)
+    t = np.array([rig.pose.bones[n].tail for n in names], np.float64)
+    return t @ mw[:3, :3].T + mw[:3, 3]
+
+
+def pose_heads_dirs(rig, names) -> tuple[np.ndarray, np.ndarray]:
+    """World heads ``(B, 3)`` and unit Y axes (bone directions) ``(B, 3)`` of the pose bones."""
+    mw = np.array(rig.matrix_world)
+    h = np.array([rig.pose.bones[n].head for n in names], np.float64) @ mw[:3, :3].T + mw[:3, 3]
+    y = np.array([np.array(rig.pose.bones[n].matrix)[:3, 1] for n in names]) @ mw[:3, :3].T
+    return h, y / np.linalg.norm(y, axis=1, keepdims=True)
+
+
+def expected(tree: Tree3D, frame: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Heads, tails ``(B, 3)`` and unit directions of the bones at scene frame ``frame`` (1-based)."""
+    edges = bn.bone_edges(tree.parents)
+    p = tree.nodes3d[frame - 1].astype(np.float64)
+    d = p[edges[:, 1]] - p[edges[:, 0]]
+    return p[edges[:, 0]], p[edges[:, 1]], d / np.linalg.norm(d, axis=1, keepdims=True)
