@@ -12,7 +12,8 @@ tip) moves its whole subtree by one depth offset chosen from L candidates in [y 
     D(Ω, X) = Σ_k min_X |ω_k − X|                           (Eq. 5)
 
 with α_i the 3D angle between the branch (previous push node → i) and its parent branch, μ the
-mean 2D branching angle clamped to [π/6, π/3], ω_k 200–300 attractors spread evenly on the
+mean 2D branching angle clamped to [π/6, π/3] (the child that continues its parent at a fork aims
+at its own 2D angle instead, so limbs do not kink in depth at every fork), ω_k 200–300 attractors spread evenly on the
 envelope Ω, and X densely sampled edges. Where every E is 0 the local term decides alone.
 
 Measured on synthetic trees, the literal reading leans crowns, zig-zags conifer leaders and
@@ -47,7 +48,8 @@ class LiftParams:
 
     candidates: int = 32
     attractors: int = 256
-    delta_frac: float = 0.2        # δ = width / 5
+    delta_frac: float = 0.2        # δ = width / 5 …
+    max_push_ratio: float = 1.5    # … and at most this times the pushed branch's length
     sigma_min: float = 0.15        # radians: floor of σ_i (the tips would get σ = 0)
     sample_step: float = 0.02      # edge sampling for D, share of the tree height
     conifer: bool = False
@@ -190,6 +192,27 @@ def mean_branch_angle_2d(pos: np.ndarray, parents: np.ndarray, up_of: np.ndarray
     return float(np.clip(np.mean(ang), *MU_RANGE))
 
 
+def continuation_targets(pos: np.ndarray, up: np.ndarray, pushed: np.ndarray, mu: float) -> np.ndarray:
+    """Preferred 3D branching angle per push node: μ for a side branch; for the child that
+    continues its parent (the smallest 2D angle among the branches leaving the same node) its own
+    2D angle — aiming every child at μ would kink each limb in depth at every fork."""
+    N = len(pos)
+    target = np.full(N, mu)
+    idx = np.flatnonzero(pushed & (up >= 0))
+    if len(idx) == 0:
+        return target
+    j = up[idx]
+    has_gp = up[j] >= 0
+    grand = np.where(has_gp, up[np.maximum(j, 0)], j)
+    parent_dir = np.where(has_gp[:, None], pos[j] - pos[np.maximum(grand, 0)], [0.0, 0.0, 1.0])
+    ang = angle_between(pos[idx] - pos[j], parent_dir)
+    for anchor in np.unique(j):
+        sel = np.flatnonzero(j == anchor)
+        cont = sel[np.argmin(ang[sel])]
+        target[idx[cont]] = ang[cont]
+    return target
+
+
 def upstream_push(parents: np.ndarray, anchors: np.ndarray) -> np.ndarray:
     """For every node, the nearest strict ancestor that is an anchor (push node, or the root, or a
     fixed node); −1 for the root."""
@@ -232,6 +255,7 @@ def lift(skel: Skeleton2D, outline: Outline, params: LiftParams | None = None,
     anchors[parents < 0] = True
     up = upstream_push(parents, anchors)
     mu = mean_branch_angle_2d(pos, parents, up, pushed)
+    target = continuation_targets(pos, up, pushed, mu)
     level = skel.level
     d_max = max(int(level.max()), 1)
 
@@ -264,7 +288,7 @@ def lift(skel: Skeleton2D, outline: Outline, params: LiftParams | None = None,
     a_tree = cKDTree(attr) if len(attr) else None
     step = params.sample_step * height
     rng = np.random.default_rng(params.seed)
-    offsets = np.linspace(-delta, delta, params.candidates)
+    unit = np.linspace(-1.0, 1.0, params.candidates)
     push_list = [n for n in order if pushed[n]]
     for k, i in enumerate(push_list):
         j = up[i]
@@ -272,6 +296,9 @@ def lift(skel: Skeleton2D, outline: Outline, params: LiftParams | None = None,
         chain = chain_of[i]
         y0 = pos[i, 1]
         # candidate depths for the pushed node; moved set: subtree (same offset) + chain (blend)
+        # prior: uniform in [y − δ, y + δ]; δ = width / 5, but never more than the branch's own
+        # length, so a short twig is not stretched out flat in depth (the prior's purpose)
+        offsets = unit * min(delta, params.max_push_ratio * float(np.linalg.norm(pos[i] - pos[j])))
         cand = y0 + offsets                                        # (L,)
         t_chain = arc[chain] / max(arc[i], 1e-9)                     # (C,)
         moved_idx = np.concatenate([sub, chain]).astype(int)
@@ -290,7 +317,7 @@ def lift(skel: Skeleton2D, outline: Outline, params: LiftParams | None = None,
             b[:, 1] = cand - pos[j, 1]
             alpha = angle_between(b, b_par[None])
             sigma = max(np.pi * (d_max - level[i]) / d_max, params.sigma_min)
-            local = local_term(alpha, mu, sigma)
+            local = local_term(alpha, target[i], sigma)
         else:
             local = np.ones(len(cand))
         # global term: reduction of D(Ω, X) over the attractors

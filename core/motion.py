@@ -43,7 +43,7 @@ class MotionParams:
     radians). ``solver`` is "probabilistic" (default) or "deterministic"."""
 
     solver: str = "probabilistic"
-    sigma_track: float = 0.01         # of the tree height
+    sigma_track: float = 0.0075         # of the tree height
     sigma_shape: float = 0.02         # radians at level 0 …
     sigma_shape_growth: float = 0.5   # … times (1 + growth · level)
     max_step: float = 0.15            # δ_r: per-frame rotation bound per axis
