@@ -1,6 +1,7 @@
-"""Batch entry: video + outline → moving 2D skeleton (and, in later stages, the 3D tree).
+"""Batch entry: video + outline → moving 2D skeleton → animated 3D tree (+ Blender scene, exports).
 
     python batch.py VIDEO --outline OUTLINE.json|MASK.png --out DIR [options]
+    blender -b --python batch.py -- VIDEO --outline ... --out DIR [options]
 
 Exit codes: 0 success, 2 bad input (one line on stderr naming the problem and the fix),
 1 internal error. Progress lines go to stderr.
@@ -43,13 +44,22 @@ def build_parser() -> argparse.ArgumentParser:
                    help="tree outline in frame 1: JSON list of [x, y] pixel points, or a mask image (white = tree)")
     p.add_argument("--out", required=True, help="output folder (created if missing)")
     p.add_argument("--npz", action="store_true",
-                   help="also write DIR/result.npz: parents (N,), nodes2d (F, N, 2) px, level (N,), fps")
+                   help="also write DIR/result.npz: parents (N,), nodes2d (F, N, 2) px, nodes3d (F, N, 3) m, level (N,), fps")
     p.add_argument("--levels", type=int, default=6, help="hierarchy levels incl. the root, 2..9 (default 6; paper: 5-7)")
     p.add_argument("--frames", default=None, metavar="A:B",
                    help="frame range, 0-based, B exclusive; either side may be empty (default: all)")
     p.add_argument("--skeleton", choices=("traced", "paper"), default="traced",
                    help="traced: branches traced in the video (default); paper: cluster centroids folded toward parents")
     p.add_argument("--scale", type=float, default=1.0, help="downscale the video by this factor (0 < s <= 1) for speed")
+    p.add_argument("--conifer", action="store_true", help="conifer: keep the straight central leader fixed in the 3D lift")
+    p.add_argument("--solver", choices=("probabilistic", "deterministic"), default="probabilistic",
+                   help="3D motion solver (default probabilistic, paper §4; deterministic: sphere/line-of-sight baseline)")
+    p.add_argument("--height", type=float, default=10.0, help="tree height in the scene, metres (default 10)")
+    p.add_argument("--fbx", action="store_true", help="write DIR/tree.fbx (armature + skinned mesh, baked animation)")
+    p.add_argument("--usd", action="store_true", help="write DIR/tree.usdc (needs a Blender built with USD)")
+    p.add_argument("--gltf", action="store_true", help="write DIR/tree.glb (glTF binary, animation from t = 0)")
+    p.add_argument("--blend", action="store_true", help="write DIR/tree.blend (the scene with the animated tree)")
+    p.add_argument("--preview", action="store_true", help="write DIR/preview.png (front and side renders of frame 1)")
     p.add_argument("--no-video", action="store_true", help="skip overlay.mp4 (overlay.png is still written)")
     p.add_argument("--force", action="store_true", help="overwrite existing output files in DIR")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
@@ -82,6 +92,17 @@ def _check_out(out: str, names: list[str], force: bool, InputError) -> None:
         raise InputError(f"{os.path.join(out, existing[0])} exists; pass --force to overwrite or choose another --out")
 
 
+def _blender_outputs(InputError):
+    """The bpy side (operators/outputs.py), or a clear error when this Python has no Blender."""
+    try:
+        import bpy  # noqa: F401
+    except ImportError:
+        raise InputError("--fbx/--usd/--gltf/--blend/--preview need Blender's Python: run with the "
+                         "project's venv (make setup) or as blender -b --python batch.py -- ...") from None
+    from importlib import import_module
+    return import_module(f"{PACKAGE}.operators.outputs")
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     pkg = _package()
@@ -91,12 +112,21 @@ def main(argv: list[str] | None = None) -> int:
         pipeline = import_module(f"{PACKAGE}.core.pipeline")
         model = import_module(f"{PACKAGE}.core.model")
         overlay = import_module(f"{PACKAGE}.core.overlay")
-        names = ["skeleton.npz", "overlay.png"] + ([] if args.no_video else ["overlay.mp4"]) \
-            + (["result.npz"] if args.npz else [])
+        wanted = {"fbx": args.fbx, "usd": args.usd, "gltf": args.gltf, "blend": args.blend,
+                  "preview": args.preview}
+        blender_files = [n for k, n in (("fbx", "tree.fbx"), ("usd", "tree.usdc"), ("gltf", "tree.glb"),
+                                        ("blend", "tree.blend"), ("preview", "preview.png")) if wanted[k]]
+        names = ["skeleton.npz", "tree3d.npz", "overlay.png"] + ([] if args.no_video else ["overlay.mp4"]) \
+            + (["result.npz"] if args.npz else []) + blender_files
         settings = pipeline.Settings(levels=args.levels, skeleton=args.skeleton, frames=args.frames,
-                                     scale=args.scale)
+                                     scale=args.scale, height_m=args.height)
+        settings.lift.conifer = args.conifer
+        settings.motion.solver = args.solver
         pipeline.check_settings(settings)
         _check_out(args.out, names, args.force, errors.InputError)
+        outputs = _blender_outputs(errors.InputError) if blender_files else None
+        if outputs is not None:
+            outputs.check_wanted(wanted)
         cb = _progress_printer(args.quiet)
         res = pipeline.run(args.video, args.outline, settings, cb)
         os.makedirs(args.out, exist_ok=True)
@@ -105,12 +135,21 @@ def main(argv: list[str] | None = None) -> int:
         meta = {"video": os.path.abspath(args.video), "frames": [res.start, res.stop],
                 "levels": args.levels, "scale": args.scale, "version": getattr(pkg, "__version__", "")}
         model.save_skeleton(os.path.join(args.out, "skeleton.npz"), res.skeleton, meta)
+        name = os.path.splitext(os.path.basename(args.video))[0] or "Tree"
+        tree = pipeline.build_3d(res, settings, name=f"Tree {name}", progress=cb)
+        tree.meta.update(meta)
+        tree3d = import_module(f"{PACKAGE}.core.tree3d")
+        tree3d.save_tree(os.path.join(args.out, "tree3d.npz"), tree)
         if args.npz:
             arrays = model.skeleton_arrays(res.skeleton, meta)
+            arrays["nodes3d"] = tree.nodes3d
             model.atomic_savez(os.path.join(args.out, "result.npz"), **arrays)
         overlay.write_overlays(res.info, res.start, res.skeleton, res.tracks,
                                os.path.join(args.out, "overlay.png"),
                                None if args.no_video else os.path.join(args.out, "overlay.mp4"), cb)
+        if outputs is not None:
+            outputs.write_outputs(tree, args.out, wanted, overwrite=args.force,
+                                  report=lambda m: sys.stderr.write(m + "\n"))
         sys.stderr.write(f"done: {res.skeleton.n_nodes} nodes, {res.tracks.points.shape[1]} tracks, "
                          f"{res.tracks.n_frames} frames -> {args.out}\n")
         return 0

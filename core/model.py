@@ -15,6 +15,27 @@ from .skeleton2d import Skeleton2D
 FORMAT_VERSION = 1
 
 
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+def publish(tmp: str, path: str | os.PathLike) -> None:
+    """Give the finished temporary file ``tmp`` the permissions a plain new file would have
+    (``mkstemp`` makes it private) and rename it to ``path``."""
+    os.chmod(tmp, 0o666 & ~_umask())
+    os.replace(tmp, path)
+
+
+def temp_path(path: str | os.PathLike, suffix: str) -> str:
+    """A not-yet-existing hidden temporary name in ``path``'s folder (for writers that refuse to
+    write over an existing file or back it up, like Blender's save)."""
+    import uuid
+    folder = os.path.dirname(os.path.abspath(path))
+    return os.path.join(folder, f".tmp-{uuid.uuid4().hex[:12]}{suffix}")
+
+
 def atomic_savez(path: str | os.PathLike, **arrays) -> None:
     """``np.savez_compressed`` to ``path`` through a temporary file in the same folder."""
     path = os.fspath(path)
@@ -23,7 +44,7 @@ def atomic_savez(path: str | os.PathLike, **arrays) -> None:
     try:
         with os.fdopen(fd, "wb") as fh:
             np.savez_compressed(fh, **arrays)
-        os.replace(tmp, path)
+        publish(tmp, path)
     except BaseException:
         if os.path.exists(tmp):
             os.unlink(tmp)

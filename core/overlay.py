@@ -7,6 +7,7 @@ import tempfile
 import cv2
 import numpy as np
 
+from .model import publish
 from .progress import ProgressFn, report
 from .skeleton2d import Skeleton2D
 from .tracks import Tracks
@@ -62,7 +63,7 @@ def write_overlays(info: VideoInfo, start: int, skel: Skeleton2D, tracks: Tracks
                 fd, tmp_png = tempfile.mkstemp(suffix=".png", dir=os.path.dirname(os.path.abspath(png_path)))
                 os.close(fd)
                 cv2.imwrite(tmp_png, img)
-                os.replace(tmp_png, png_path)
+                publish(tmp_png, png_path)
                 if mp4_path is None:
                     return
                 fd, tmp = tempfile.mkstemp(suffix=".mp4", dir=os.path.dirname(os.path.abspath(mp4_path)))
@@ -74,7 +75,7 @@ def write_overlays(info: VideoInfo, start: int, skel: Skeleton2D, tracks: Tracks
                 report(progress, "overlay", t / n)
         writer.release()
         writer = None
-        os.replace(tmp, mp4_path)
+        publish(tmp, mp4_path)
         tmp = None
     finally:
         if writer is not None:

@@ -1,19 +1,23 @@
-"""The stages run in order on one streaming pass over the video: video → tracks → hierarchy →
-skeleton2d. Later stages (lift3d, motion, ...) extend :func:`run`."""
+"""The stages in order: one streaming pass over the video (tracks + bark statistics) →
+hierarchy → skeleton2d (:func:`run`), then lift3d → motion → :class:`Tree3D` (:func:`build_3d`)."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 
 import cv2
+import numpy as np
 
 from .appearance import AppearanceAccumulator, AppearanceMaps
 from .errors import InputError
 from .hierarchy import Hierarchy, HierarchyParams, build_hierarchy
+from .lift3d import LiftParams, lift
+from .motion import MotionParams, solve_motion
 from .outline import Outline, load_outline
 from .progress import ProgressFn, report, sub_progress
 from .skeleton2d import Skeleton2D, paper_skeleton
 from .trace import TraceParams, traced_skeleton
 from .tracks import Tracker, TrackParams, Tracks
+from .tree3d import Tree3D, image_to_plane, pipe_radii
 from .video import VideoInfo, iter_frames, open_video, parse_frame_range, prefetch
 
 SKELETON_KINDS = ("traced", "paper")
@@ -29,6 +33,11 @@ class Settings:
     scale: float = 1.0              # downscale factor for the video (0 < scale <= 1)
     track: TrackParams = field(default_factory=TrackParams)
     trace: TraceParams = field(default_factory=TraceParams)
+    lift: LiftParams = field(default_factory=LiftParams)
+    motion: MotionParams = field(default_factory=MotionParams)
+    height_m: float = 10.0          # the tree's height in the scene, metres
+    tip_radius: float = 0.0025      # branch radius at the tips, share of the height (pipe model)
+    pipe_exponent: float = 2.0      # r_parent^e = Σ r_child^e
 
 
 @dataclass
@@ -92,3 +101,23 @@ def run(video: str, outline_path: str, settings: Settings | None = None,
     else:
         skel = traced_skeleton(tracks, hier, outline, maps, s.trace, sk_prog)
     return Result(info, outline, start, stop, tracks, hier, maps, skel)
+
+
+def build_3d(res: Result, s: Settings | None = None, name: str = "Tree",
+             progress: ProgressFn | None = None) -> Tree3D:
+    """Lift the 2D skeleton to 3D and solve its motion; the tree in metres, ``height_m`` tall."""
+    s = s or Settings()
+    if not s.height_m > 0:
+        raise InputError(f"tree height {s.height_m} m is not positive; give e.g. 10")
+    sk = res.skeleton
+    lifted = lift(sk, res.outline, s.lift, sub_progress(progress, 0.0, 0.2))
+    base = sk.nodes2d[0, 0].astype(float)
+    targets = image_to_plane(sk.nodes2d.astype(float), base)[..., [0, 2]]
+    mo = solve_motion(lifted.nodes, sk.parents, sk.level, targets, s.motion, sub_progress(progress, 0.2, 1.0))
+    height_px = max(float(lifted.envelope.z.max()), float(lifted.nodes[:, 2].max()), 1.0)
+    scale = s.height_m / height_px
+    radius = pipe_radii(sk.parents, s.tip_radius * s.height_m, s.pipe_exponent)
+    meta = {"height_px": height_px, "metres_per_px": scale, "solver": s.motion.solver,
+            "conifer": s.lift.conifer, "mu_deg": float(np.degrees(lifted.mu))}
+    return Tree3D(sk.parents.copy(), (mo.nodes * scale).astype(np.float32), radius, sk.level.copy(),
+                  sk.fps, name, meta)

@@ -16,6 +16,26 @@ fi
 echo "== Blender 4.3 (real binary)"
 "$RB" run blender -b --factory-startup --python-exit-code 1 --python tests/blender/run_in_blender.py
 
+echo "== Blender 4.3: blender -b --python batch.py -- ..."
+OUT=$(mktemp -d /tmp/tfv-batch.XXXXXX)
+trap 'rm -rf "$OUT"' EXIT
+"$RB" run blender -b --factory-startup --python-exit-code 1 --python batch.py -- \
+  sample_videos/broad/video.mp4 --outline sample_videos/broad/outline.json --out "$OUT/run" \
+  --npz --fbx --gltf --blend --preview --frames 0:48 --no-video --quiet > "$OUT/log" 2>&1 \
+  || { tail -20 "$OUT/log"; echo "batch under Blender 4.3 failed" >&2; exit 1; }
+for f in skeleton.npz tree3d.npz result.npz overlay.png preview.png tree.fbx tree.glb tree.blend; do
+  [ -s "$OUT/run/$f" ] || { echo "batch under Blender 4.3 did not write $f" >&2; exit 1; }
+done
+set +e
+"$RB" run blender -b --factory-startup --python-exit-code 1 --python batch.py -- \
+  sample_videos/broad/video.mp4 --outline sample_videos/broad/outline.json --out "$OUT/usd" --usd > "$OUT/log" 2>&1
+rc=$?
+set -e
+if [ $rc -ne 2 ] || ! grep -q "without USD" "$OUT/log" || [ -e "$OUT/usd" ]; then
+  tail -5 "$OUT/log"; echo "--usd in a Blender without USD should exit 2 with a clear error (got $rc)" >&2; exit 1
+fi
+echo "batch under Blender 4.3: all files written; --usd refused clearly"
+
 VENV=/tmp/tree_from_video-bpy53
 want=$(sha256sum requirements-bpy53.txt | cut -d' ' -f1)
 if [ "$(cat "$VENV/.requirements.sha" 2>/dev/null)" != "$want" ]; then
@@ -25,5 +45,5 @@ if [ "$(cat "$VENV/.requirements.sha" 2>/dev/null)" != "$want" ]; then
 fi
 echo "== bpy 5.3 (Python 3.13 module)"
 "$RB" run "$VENV/bin/python" -m pytest -q -p no:cacheprovider \
-  tests/test_units.py tests/test_register.py tests/test_sample_run.py tests/test_batch.py \
+  tests/test_units.py tests/test_register.py tests/test_sample_run.py tests/test_batch.py tests/test_batch_3d.py \
   tests/test_scene.py tests/test_exports.py

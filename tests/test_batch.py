@@ -23,7 +23,7 @@ def test_batch_writes_skeleton_overlays_and_result(tmp_path):
     out = tmp_path / "out"
     code, _, err = run(VIDEO, "--outline", OUTLINE, "--out", out, "--npz", "--frames", "0:48", "--levels", "5")
     assert code == 0, err
-    assert sorted(os.listdir(out)) == ["overlay.mp4", "overlay.png", "result.npz", "skeleton.npz"]
+    assert sorted(os.listdir(out)) == ["overlay.mp4", "overlay.png", "result.npz", "skeleton.npz", "tree3d.npz"]
     with np.load(out / "result.npz", allow_pickle=False) as z:
         F, N = z["nodes2d"].shape[:2]
         assert F == 48 and z["nodes2d"].shape[2] == 2 and z["parents"].shape == (N,) and z["level"].shape == (N,)
@@ -44,7 +44,7 @@ def test_paper_skeleton_option(tmp_path):
     code, _, err = run(VIDEO, "--outline", OUTLINE, "--out", tmp_path / "p", "--skeleton", "paper",
                        "--frames", ":24", "--no-video")
     assert code == 0, err
-    assert sorted(os.listdir(tmp_path / "p")) == ["overlay.png", "skeleton.npz"]
+    assert sorted(os.listdir(tmp_path / "p")) == ["overlay.png", "skeleton.npz", "tree3d.npz"]
     with np.load(tmp_path / "p" / "skeleton.npz", allow_pickle=False) as z:
         assert json.loads(str(z["meta_json"]))["kind"] == "paper"
 

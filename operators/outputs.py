@@ -1,0 +1,156 @@
+"""Everything the batch job writes from a :class:`Tree3D`: the scene (armature + branch mesh),
+FBX / USD / glTF, a .blend, and a preview image (front and side views, Workbench).
+
+Every file is written to a temporary name in its folder and renamed when complete; an existing
+file is replaced only with ``overwrite``.
+"""
+from __future__ import annotations
+
+import os
+import tempfile
+
+import bpy
+import numpy as np
+
+from ..core.errors import InputError
+from ..core.model import publish, temp_path
+from ..core.tree3d import Tree3D
+from . import export
+from .scene_build import build_tree
+
+FORMATS = {"fbx": "tree.fbx", "usd": "tree.usdc", "gltf": "tree.glb", "blend": "tree.blend",
+           "preview": "preview.png"}
+
+
+def wanted_files(out_dir: str, wanted: dict) -> list[str]:
+    """Paths the job will write for ``wanted`` = {format: bool}."""
+    return [os.path.join(out_dir, FORMATS[k]) for k, on in wanted.items() if on]
+
+
+def check_wanted(wanted: dict) -> None:
+    """Refuse, before any work, what this Blender cannot write."""
+    if wanted.get("usd") and not export.has_usd():
+        raise InputError("this Blender was built without USD (e.g. Debian's); drop --usd or use FBX/glTF")
+
+
+def write_outputs(tree: Tree3D, out_dir: str, wanted: dict, overwrite: bool = False,
+                  fresh_scene: bool = True, report=print) -> dict:
+    """Build ``tree`` in the scene and write the ``wanted`` files into ``out_dir``.
+
+    ``fresh_scene`` starts from an empty scene (batch runs); returns {format: path}.
+    """
+    check_wanted(wanted)
+    for path in wanted_files(out_dir, wanted):
+        if os.path.exists(path) and not overwrite:
+            raise InputError(f"{path} exists; pass --force to overwrite or choose another --out")
+    if fresh_scene:
+        bpy.ops.wm.read_factory_settings(use_empty=True)
+    context = bpy.context
+    built = build_tree(context, tree, tree.name, replace=True)
+    objects = [o for o in (built["armature"], built["mesh"]) if o is not None]
+    written = {}
+    if wanted.get("fbx"):
+        written["fbx"] = export.export_fbx(os.path.join(out_dir, FORMATS["fbx"]), objects, overwrite=overwrite)
+        report(f"[export] {written['fbx']}")
+    if wanted.get("usd"):
+        written["usd"] = export.export_usd(os.path.join(out_dir, FORMATS["usd"]), objects, overwrite=overwrite)
+        report(f"[export] {written['usd']}")
+    if wanted.get("gltf"):
+        written["gltf"] = export.export_gltf(os.path.join(out_dir, FORMATS["gltf"]), objects, overwrite=overwrite)
+        report(f"[export] {written['gltf']}")
+    if wanted.get("preview"):
+        written["preview"] = render_preview(context, tree, objects, os.path.join(out_dir, FORMATS["preview"]))
+        report(f"[preview] {written['preview']}")
+    if wanted.get("blend"):
+        written["blend"] = save_blend(os.path.join(out_dir, FORMATS["blend"]))
+        report(f"[blend] {written['blend']}")
+    return written
+
+
+def save_blend(path: str) -> str:
+    """Save a copy of the current file to ``path`` atomically (the session's file name is kept)."""
+    tmp = temp_path(path, ".blend")          # must not exist: Blender would back it up as .blend1
+    try:
+        bpy.ops.wm.save_as_mainfile(filepath=tmp, copy=True, compress=True)
+        publish(tmp, path)
+    finally:
+        for leftover in (tmp, tmp + "1"):
+            if os.path.exists(leftover):
+                os.unlink(leftover)
+    return path
+
+
+def _camera(scene, name: str, location, rotation, ortho_scale: float):
+    cam_data = bpy.data.cameras.new(name)
+    cam_data.type = "ORTHO"
+    cam_data.ortho_scale = ortho_scale
+    cam_data.clip_end = 10 * ortho_scale + 100
+    cam = bpy.data.objects.new(name, cam_data)
+    cam.location = location
+    cam.rotation_euler = rotation
+    scene.collection.objects.link(cam)
+    return cam
+
+
+def render_preview(context, tree: Tree3D, objects, path: str, size: tuple[int, int] = (480, 540)) -> str:
+    """Front and side orthographic Workbench renders of frame 1, side by side, to ``path`` (PNG).
+
+    Temporary cameras and render settings are removed/restored afterwards."""
+    import cv2
+
+    scene = context.scene
+    pts = tree.nodes3d[0]
+    lo, hi = pts.min(0), pts.max(0)
+    centre = 0.5 * (lo + hi)
+    extent = float(max(hi[2] - lo[2], hi[0] - lo[0], hi[1] - lo[1])) * 1.15 + 1e-3
+    dist = 4 * extent
+    r = scene.render
+    saved = (r.engine, r.resolution_x, r.resolution_y, r.resolution_percentage, r.filepath,
+             r.image_settings.file_format, scene.camera, scene.frame_current)
+    cams = []
+    folder = os.path.dirname(os.path.abspath(path))
+    tmp_files = []
+    try:
+        r.engine = "BLENDER_WORKBENCH"
+        r.resolution_x, r.resolution_y, r.resolution_percentage = size[0], size[1], 100
+        r.image_settings.file_format = "PNG"
+        shading = scene.display.shading
+        shading.light = "STUDIO"
+        shading.color_type = "SINGLE"
+        shading.single_color = (0.42, 0.30, 0.20)
+        world = scene.world or bpy.data.worlds.new("Preview World")
+        scene.world = world
+        world.color = (0.85, 0.9, 0.95)
+        scene.frame_set(1)
+        views = (("front", (centre[0], lo[1] - dist, centre[2]), (np.pi / 2, 0.0, 0.0)),
+                 ("side", (hi[0] + dist, centre[1], centre[2]), (np.pi / 2, 0.0, np.pi / 2)))
+        images = []
+        for name, loc, rot in views:
+            cam = _camera(scene, f"Preview {name}", loc, rot, extent)
+            cams.append(cam)
+            scene.camera = cam
+            fd, tmp = tempfile.mkstemp(prefix=".tmp-", suffix=".png", dir=folder)
+            os.close(fd)
+            tmp_files.append(tmp)
+            r.filepath = tmp
+            bpy.ops.render.render(write_still=True)
+            img = cv2.imread(tmp)
+            cv2.putText(img, name, (12, 30), cv2.FONT_HERSHEY_SIMPLEX, 0.8, (40, 40, 40), 2, cv2.LINE_AA)
+            images.append(img)
+        fd, tmp = tempfile.mkstemp(prefix=".tmp-", suffix=".png", dir=folder)
+        os.close(fd)
+        tmp_files.append(tmp)
+        cv2.imwrite(tmp, np.hstack(images))
+        publish(tmp, path)
+    finally:
+        for cam in cams:
+            data = cam.data
+            bpy.data.objects.remove(cam)
+            bpy.data.cameras.remove(data)
+        (r.engine, r.resolution_x, r.resolution_y, r.resolution_percentage, r.filepath,
+         r.image_settings.file_format, scene.camera, frame) = saved
+        scene.frame_set(frame)
+        for f in tmp_files:
+            if os.path.exists(f):
+                os.unlink(f)
+    return path
