@@ -10,8 +10,9 @@ setup:
 
 demo: setup
 	$(PY) batch.py sample_videos/$(SAMPLE)/video.mp4 --outline sample_videos/$(SAMPLE)/outline.json \
-		--out out/$(SAMPLE) --npz --force
-	@echo "demo: wrote out/$(SAMPLE)/skeleton.npz, overlay.png, overlay.mp4"
+		--out out/$(SAMPLE) --npz --fbx --usd --gltf --blend --preview --force
+	@echo "demo: wrote out/$(SAMPLE)/: skeleton.npz tree3d.npz result.npz overlay.png overlay.mp4" \
+		"tree.blend tree.fbx tree.usdc tree.glb preview.png"
 
 test: setup
 	bash scripts/test.sh
@@ -24,6 +25,7 @@ test-blender:
 
 bench: setup
 	$(PY) benchmarks/bench_skeleton.py
+	$(PY) benchmarks/bench_motion.py
 
 clean:
 	rm -rf out dist .pytest_cache
