@@ -324,3 +324,29 @@ def test_timing_127_bones_300_frames_and_full_sample():
     t = res["timings"]
     print(f"broad sample 234 bones x 180 frames: rotations {t['rotations']:.3f} s, keys {t['keys']:.3f} s, "
           f"armature {t['armature']:.3f} s, mesh {t['mesh']:.3f} s, total {t['total']:.3f} s")
+
+
+def test_solver_output_builds_and_poses_exactly():
+    """The reconstruction itself (video → skeleton → lift → probabilistic motion, 30 frames of the
+    committed sample) built as an armature: one bone per skeleton edge, one key per frame and bone
+    and channel, and the evaluated pose equals the solver's nodes within 1e-4 of the height."""
+    import os
+
+    from tree_from_video.core import pipeline
+    from trees import ROOT
+    folder = os.path.join(ROOT, "sample_videos", "broad")
+    res = pipeline.run(os.path.join(folder, "video.mp4"), os.path.join(folder, "outline.json"),
+                       pipeline.Settings(frames="0:30"))
+    tree = pipeline.build_3d(res, pipeline.Settings(frames="0:30"), name="Solved")
+    built = scene_build.build_tree(bpy.context, tree, "Solved")
+    rig = built["armature"]
+    names = bn.bone_names(tree.parents)
+    assert len(rig.data.bones) == len(res.skeleton.edges()) == tree.n_nodes - 1
+    curves = list(action_api.action_fcurves(built["action"]))
+    assert len(curves) == 4 * len(names)
+    assert {len(fc.keyframe_points) for fc in curves} == {tree.n_frames}
+    tol = 1e-4 * tree_height(tree)
+    for frame in (1, 12, 30):
+        bpy.context.scene.frame_set(frame)
+        _, tails, _ = expected(tree, frame)
+        assert np.abs(pose_tails(rig, names) - tails).max() <= tol, frame
