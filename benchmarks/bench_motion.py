@@ -1,26 +1,15 @@
-"""Benchmark: the 3D stages on a 127-node skeleton × 300 frames — lift, and motion per frame for
-both solvers (target for the probabilistic solver: ≤ 5 ms per frame on 2 cores).
+"""Benchmark: 3D motion on a 127-node skeleton × 300 frames, per frame for both solvers (target
+for the probabilistic solver: ≤ 5 ms per frame on 2 cores).
 
     .venv/bin/python benchmarks/bench_motion.py
 """
 from __future__ import annotations
 
-import importlib.util
-import os
-import sys
 import time
 
 import numpy as np
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-
-
-def _load_package():
-    spec = importlib.util.spec_from_file_location("tree_from_video", os.path.join(ROOT, "__init__.py"),
-                                                  submodule_search_locations=[ROOT])
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules["tree_from_video"] = mod
-    spec.loader.exec_module(mod)
+from _package import load_package
 
 
 def binary_tree(levels: int = 7, frames: int = 300, seed: int = 0):
@@ -50,7 +39,7 @@ def binary_tree(levels: int = 7, frames: int = 300, seed: int = 0):
 
 
 def main() -> None:
-    _load_package()
+    load_package()
     from tree_from_video.core import motion
     parents, pos, level, targets = binary_tree()
     rest = pos.copy()

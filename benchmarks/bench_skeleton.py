@@ -7,21 +7,11 @@ Prints seconds per stage and the ratio of the whole run to decode-only (target: 
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import os
-import sys
 import tempfile
 import time
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-
-
-def _load_package():
-    spec = importlib.util.spec_from_file_location("tree_from_video", os.path.join(ROOT, "__init__.py"),
-                                                  submodule_search_locations=[ROOT])
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules["tree_from_video"] = mod
-    spec.loader.exec_module(mod)
+from _package import load_package
 
 
 def main() -> None:
@@ -31,7 +21,7 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=300)
     ap.add_argument("--variant", default="broad")
     args = ap.parse_args()
-    _load_package()
+    load_package()
     from tree_from_video.core import hierarchy, pipeline, skeleton2d, trace, video
     from tree_from_video.core.outline import load_outline
     from tree_from_video.sample_videos import synth_tree

@@ -35,7 +35,7 @@ from scipy.spatial import cKDTree
 
 from .outline import Outline
 from .progress import ProgressFn, report
-from .skeleton2d import Skeleton2D, children_lists, topological_order
+from .skeleton2d import Skeleton2D, chains, children_lists, topological_order
 from .tree3d import image_to_plane
 
 MU_RANGE = (np.pi / 6, np.pi / 3)
@@ -213,17 +213,6 @@ def continuation_targets(pos: np.ndarray, up: np.ndarray, pushed: np.ndarray, mu
     return target
 
 
-def upstream_push(parents: np.ndarray, anchors: np.ndarray) -> np.ndarray:
-    """For every node, the nearest strict ancestor that is an anchor (push node, or the root, or a
-    fixed node); −1 for the root."""
-    up = np.full(len(parents), -1)
-    for n in topological_order(parents):
-        p = parents[n]
-        if p >= 0:
-            up[n] = p if anchors[p] else up[p]
-    return up
-
-
 def _edge_samples(pos: np.ndarray, parents: np.ndarray, step: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Points along every edge: returns (child node, parameter t in (0, 1], parent node) per sample."""
     c = np.flatnonzero(parents >= 0)
@@ -253,31 +242,15 @@ def lift(skel: Skeleton2D, outline: Outline, params: LiftParams | None = None,
     pushed = push_nodes(parents) & ~fixed
     anchors = pushed | fixed
     anchors[parents < 0] = True
-    up = upstream_push(parents, anchors)
+    cs = chains(parents, pos, anchors)
+    up, down, arc = cs.up, cs.down, cs.arc
     mu = mean_branch_angle_2d(pos, parents, up, pushed)
     target = continuation_targets(pos, up, pushed, mu)
     level = skel.level
     d_max = max(int(level.max()), 1)
 
-    # arc-length parameter of every chain node between its upstream anchor and the next anchor
     ch = children_lists(parents)
     order = topological_order(parents)
-    seg_len = np.zeros(N)
-    for n in order:
-        p = parents[n]
-        if p >= 0:
-            seg_len[n] = np.linalg.norm(pos[n] - pos[p])
-    arc = np.zeros(N)                       # arc length from the upstream anchor
-    for n in order:
-        p = parents[n]
-        if p >= 0:
-            arc[n] = seg_len[n] + (0.0 if anchors[p] else arc[p])
-    # the anchor a chain node leads to (chains have one child each)
-    down = np.full(N, -1)
-    for n in order[::-1]:
-        if len(ch[n]) == 1:
-            c = ch[n][0]
-            down[n] = c if anchors[c] else down[c]
     chain_of = {i: np.flatnonzero((up == up[i]) & ~anchors & (down == i)) for i in np.flatnonzero(pushed)}
 
     subtree = {}

@@ -34,7 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .progress import ProgressFn, report
-from .skeleton2d import children_lists, topological_order
+from .skeleton2d import chains, children_lists, topological_order
 
 
 @dataclass
@@ -130,29 +130,13 @@ def smooth_chain_targets(targets: np.ndarray, parents: np.ndarray) -> np.ndarray
     N = len(parents)
     n_kids = np.bincount(parents[parents >= 0], minlength=N)
     anchor = (n_kids != 1) | (parents < 0)
-    order = topological_order(parents)
-    ch = children_lists(parents)
     p0 = targets[0]
-    seg = np.zeros(N)
-    has_p = parents >= 0
-    seg[has_p] = np.linalg.norm(p0[has_p] - p0[parents[has_p]], axis=1)
-    up = np.full(N, -1)
-    arc = np.zeros(N)
-    for n in order:
-        p = parents[n]
-        if p >= 0:
-            up[n] = p if anchor[p] else up[p]
-            arc[n] = seg[n] + (0.0 if anchor[p] else arc[p])
-    down = np.full(N, -1)
-    for n in order[::-1]:
-        if len(ch[n]) == 1:
-            c = ch[n][0]
-            down[n] = c if anchor[c] else down[c]
+    cs = chains(parents, p0, anchor)
     chain = np.flatnonzero(~anchor)
     if len(chain) == 0:
         return targets.copy()
-    a, b = up[chain], down[chain]
-    s = arc[chain] / np.maximum(arc[b], 1e-9)
+    a, b = cs.up[chain], cs.down[chain]
+    s = cs.fraction(chain)
     disp = targets - targets[:1]
     out = targets.copy()
     out[:, chain] = p0[chain] + (1 - s)[None, :, None] * disp[:, a] + s[None, :, None] * disp[:, b]

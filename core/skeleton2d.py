@@ -73,6 +73,44 @@ def topological_order(parents: np.ndarray) -> np.ndarray:
     return np.array(order, int)
 
 
+@dataclass
+class Chains:
+    """How nodes sit on chains between *anchors* (a chosen node set; chains run between them).
+
+    ``up (N,)`` nearest strict ancestor that is an anchor (−1 for the root); ``down (N,)`` for a
+    node with exactly one child, the first anchor below it (−1 otherwise); ``arc (N,)`` path length
+    from ``up`` to the node along the skeleton (same units as the positions).
+    """
+
+    up: np.ndarray
+    down: np.ndarray
+    arc: np.ndarray
+
+    def fraction(self, nodes: np.ndarray) -> np.ndarray:
+        """Share of the way from ``up`` to ``down`` for chain ``nodes`` (0..1)."""
+        return self.arc[nodes] / np.maximum(self.arc[self.down[nodes]], 1e-9)
+
+
+def chains(parents: np.ndarray, pos: np.ndarray, anchors: np.ndarray) -> Chains:
+    """:class:`Chains` for ``parents (N,)``, positions ``pos (N, D)`` and ``anchors (N,)`` bool."""
+    N = len(parents)
+    order = topological_order(parents)
+    ch = children_lists(parents)
+    up = np.full(N, -1)
+    arc = np.zeros(N)
+    for n in order:
+        p = parents[n]
+        if p >= 0:
+            up[n] = p if anchors[p] else up[p]
+            arc[n] = float(np.linalg.norm(pos[n] - pos[p])) + (0.0 if anchors[p] else arc[p])
+    down = np.full(N, -1)
+    for n in order[::-1]:
+        if len(ch[n]) == 1:
+            c = ch[n][0]
+            down[n] = c if anchors[c] else down[c]
+    return Chains(up, down, arc)
+
+
 def branching_level(parents: np.ndarray) -> np.ndarray:
     """Branching order per node: 0 on the trunk, +1 below every node with two or more children."""
     ch = children_lists(parents)

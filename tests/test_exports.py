@@ -14,16 +14,10 @@ import pytest
 from tree_from_video.core.errors import InputError
 from tree_from_video.operators import export, scene_build
 
+from trees import empty_scene  # noqa: F401  (autouse fixture)
 from trees import broad_tree, expected, pose_heads_dirs, pose_tails, tree_height
 
 FRAMES = 60
-
-
-@pytest.fixture(autouse=True)
-def empty_scene():
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    yield
-    bpy.ops.wm.read_factory_settings(use_empty=True)
 
 
 @pytest.fixture(scope="module")

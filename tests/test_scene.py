@@ -11,16 +11,10 @@ from tree_from_video.core.errors import InputError
 from tree_from_video.core.tree3d import Tree3D
 from tree_from_video.operators import action_api, scene_build
 
+from trees import empty_scene  # noqa: F401  (autouse fixture)
 from trees import binary_tree, broad_tree, expected, pose_tails, tree_height
 
 S2 = math.sqrt(0.5)
-
-
-@pytest.fixture(autouse=True)
-def empty_scene():
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    yield
-    bpy.ops.wm.read_factory_settings(use_empty=True)
 
 
 @pytest.fixture(scope="module")

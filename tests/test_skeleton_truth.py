@@ -9,7 +9,6 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from tree_from_video.core import pipeline
 from tree_from_video.core.skeleton2d import children_lists
 
 from groundtruth import score
@@ -50,7 +49,6 @@ def test_skeleton_is_a_valid_binary_tree(runs, variant):
     assert par[0] == -1 and (par[1:] >= 0).all() and (par[1:] < len(par)).all()
     assert max(len(c) for c in children_lists(par)) <= 2
     # every node reaches the root (no cycles)
-    depth = np.zeros(len(par), int)
     for n in range(len(par)):
         u, k = n, 0
         while par[u] >= 0 and k <= len(par):

@@ -107,7 +107,6 @@ def test_tracker_recovers_known_subpixel_shift():
 
 
 def test_camera_motion_removal_recovers_known_shift():
-    from tree_from_video.core.outline import Outline
     img = _texture(seed=4)
     moved = _shift(img, -1.5, 2.0)
     mask = np.zeros(img.shape, bool)

@@ -4,6 +4,7 @@ from __future__ import annotations
 import os
 
 import numpy as np
+import pytest
 
 from tree_from_video.core import bones as bn
 from tree_from_video.core.tree3d import Tree3D
@@ -84,3 +85,12 @@ def expected(tree: Tree3D, frame: int) -> tuple[np.ndarray, np.ndarray, np.ndarr
     p = tree.nodes3d[frame - 1].astype(np.float64)
     d = p[edges[:, 1]] - p[edges[:, 0]]
     return p[edges[:, 0]], p[edges[:, 1]], d / np.linalg.norm(d, axis=1, keepdims=True)
+
+
+@pytest.fixture(autouse=True)
+def empty_scene():
+    """Every Blender test starts and ends in an empty factory scene (import it into the module)."""
+    import bpy
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    yield
+    bpy.ops.wm.read_factory_settings(use_empty=True)
