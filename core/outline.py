@@ -64,6 +64,26 @@ def _mask_to_polygon(mask: np.ndarray) -> np.ndarray:
     return max(contours, key=cv2.contourArea).reshape(-1, 2).astype(np.float64)
 
 
+def polygon_outline(polygon, width: int, height: int, name: str = "outline") -> Outline:
+    """An :class:`Outline` from a polygon ``(M, 2)`` in pixels of the (scaled) frame, validated
+    like a file (at least 3 points, not degenerate, inside the frame)."""
+    poly = np.asarray(polygon, dtype=np.float64).reshape(-1, 2) if len(polygon) else np.zeros((0, 2))
+    if len(poly) < 3 or not np.all(np.isfinite(poly)):
+        raise InputError(f"{name} has {len(poly)} usable point(s); draw at least 3 around the tree")
+    poly_area = abs(float(cv2.contourArea(poly.astype(np.float32))))
+    if poly_area < MIN_AREA_PX:
+        raise InputError(f"{name} is degenerate (area {poly_area:.0f} px²); draw a polygon around the whole tree")
+    mask = polygon_to_mask(poly, width, height)
+    area = float(mask.sum())
+    if area == 0:
+        raise InputError(f"{name} lies outside the {width}x{height} frame; "
+                         "give coordinates in pixels of the video's first frame")
+    if area < 0.5 * poly_area:
+        raise InputError(f"{name} lies mostly outside the {width}x{height} frame "
+                         f"({100 * area / poly_area:.0f}% inside); use pixels of the first frame")
+    return Outline(poly.astype(np.float32), mask)
+
+
 def load_outline(path: str | os.PathLike, width: int, height: int, scale: float = 1.0) -> Outline:
     """Read a polygon JSON or mask image for a ``width`` x ``height`` frame (after ``scale``).
 
@@ -75,34 +95,17 @@ def load_outline(path: str | os.PathLike, width: int, height: int, scale: float 
     if not os.path.isfile(path):
         raise InputError(f"outline '{path}' does not exist; give a polygon .json or a mask .png")
     if path.lower().endswith(".json"):
-        poly = _read_polygon(path) * scale
-        if len(poly) < 3:
-            raise InputError(f"outline '{path}' has {len(poly)} point(s); draw at least 3 around the tree")
-        poly_area = abs(float(cv2.contourArea(poly.astype(np.float32))))
-        if poly_area < MIN_AREA_PX:
-            raise InputError(f"outline '{path}' is degenerate (area {poly_area:.0f} px²); "
-                             "draw a polygon around the whole tree")
-        mask = polygon_to_mask(poly, width, height)
-    else:
-        img = cv2.imread(path, cv2.IMREAD_GRAYSCALE)
-        if img is None:
-            raise InputError(f"outline '{path}' is neither JSON nor a readable image; "
-                             "give a polygon .json or a black/white mask .png")
-        if img.shape != (height, width):
-            img = cv2.resize(img, (width, height), interpolation=cv2.INTER_NEAREST)
-        mask = img > 0
-        poly = _mask_to_polygon(mask)
-        if not mask.any():
-            raise InputError(f"outline mask '{path}' is empty (all black); paint the tree white")
-    area = float(mask.sum())
-    if area == 0 and len(poly) >= 3:
-        raise InputError(f"outline '{path}' lies outside the {width}x{height} frame; "
-                         "give coordinates in pixels of the video's first frame")
-    if area < MIN_AREA_PX:
-        raise InputError(f"outline '{path}' is degenerate (area {area:.0f} px²); "
-                         "draw a polygon around the whole tree")
-    poly_area = abs(cv2.contourArea(poly.astype(np.float32))) if len(poly) >= 3 else area
-    if poly_area > 0 and area < 0.5 * poly_area:
-        raise InputError(f"outline '{path}' lies mostly outside the {width}x{height} frame "
-                         f"({100 * area / poly_area:.0f}% inside); use pixels of the first frame")
-    return Outline(poly.astype(np.float32), mask)
+        return polygon_outline(_read_polygon(path) * scale, width, height, f"outline '{path}'")
+    img = cv2.imread(path, cv2.IMREAD_GRAYSCALE)
+    if img is None:
+        raise InputError(f"outline '{path}' is neither JSON nor a readable image; "
+                         "give a polygon .json or a black/white mask .png")
+    if img.shape != (height, width):
+        img = cv2.resize(img, (width, height), interpolation=cv2.INTER_NEAREST)
+    mask = img > 0
+    if not mask.any():
+        raise InputError(f"outline mask '{path}' is empty (all black); paint the tree white")
+    if mask.sum() < MIN_AREA_PX:
+        raise InputError(f"outline mask '{path}' is degenerate (area {int(mask.sum())} px²); "
+                         "paint the whole tree white")
+    return Outline(_mask_to_polygon(mask).astype(np.float32), mask)

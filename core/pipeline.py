@@ -2,6 +2,7 @@
 hierarchy → skeleton2d (:func:`run`), then lift3d → motion → :class:`Tree3D` (:func:`build_3d`)."""
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, field
 
 import cv2
@@ -12,7 +13,7 @@ from .errors import InputError
 from .hierarchy import Hierarchy, HierarchyParams, build_hierarchy
 from .lift3d import LiftParams, lift
 from .motion import MotionParams, solve_motion
-from .outline import Outline, load_outline
+from .outline import Outline, load_outline, polygon_outline
 from .progress import ProgressFn, report, sub_progress
 from .skeleton2d import Skeleton2D, paper_skeleton
 from .trace import TraceParams, traced_skeleton
@@ -85,14 +86,20 @@ def track_video(info: VideoInfo, outline: Outline, start: int, stop: int, params
     return tracker.result(), acc.maps()
 
 
-def run(video: str, outline_path: str, settings: Settings | None = None,
+def run(video: str, outline_path, settings: Settings | None = None,
         progress: ProgressFn | None = None) -> Result:
-    """Video + outline → tracks, hierarchy and moving 2D skeleton. Raises InputError on bad input."""
+    """Video + outline → tracks, hierarchy and moving 2D skeleton. Raises InputError on bad input.
+
+    ``outline_path``: a polygon .json or mask image path, or a polygon ``(M, 2)`` array in pixels
+    of the original video (e.g. from a Blender Mask)."""
     s = settings or Settings()
     check_settings(s)
     info = open_video(video, s.scale)
     start, stop = parse_frame_range(s.frames, info.frame_count)
-    outline = load_outline(outline_path, info.width, info.height, s.scale)
+    if isinstance(outline_path, (str, os.PathLike)):
+        outline = load_outline(outline_path, info.width, info.height, s.scale)
+    else:
+        outline = polygon_outline(np.asarray(outline_path, float) * s.scale, info.width, info.height)
     tracks, maps = track_video(info, outline, start, stop, s.track, sub_progress(progress, 0.0, 0.7))
     hier = build_hierarchy(tracks, HierarchyParams(levels=s.levels), sub_progress(progress, 0.7, 0.85))
     sk_prog = sub_progress(progress, 0.85, 1.0)

@@ -5,9 +5,9 @@ import tree_from_video
 
 
 def _classes():
-    from tree_from_video.operators import skeleton_op
+    from tree_from_video.operators import reconstruct_op, skeleton_op
     from tree_from_video.ui import panel, properties
-    return skeleton_op.classes + panel.classes + properties.classes
+    return skeleton_op.classes + reconstruct_op.classes + panel.classes + properties.classes
 
 
 def _registered():

@@ -1,27 +1,111 @@
-"""View3D sidebar panel, tab "Tree"."""
+"""The "Tree from Video" sidebar panel (View3D › Sidebar › Tree) and its sub-panels."""
 import bpy
 
 
-class TREE_PT_main(bpy.types.Panel):
-    bl_label = "Tree from Video"
-    bl_idname = "TREE_PT_main"
+class _TreePanel:
     bl_space_type = "VIEW_3D"
     bl_region_type = "UI"
     bl_category = "Tree"
+
+
+class TREE_PT_main(_TreePanel, bpy.types.Panel):
+    bl_label = "Tree from Video"
+    bl_idname = "TREE_PT_main"
+
+    def draw(self, context):
+        layout = self.layout
+        wm = context.window_manager
+        running = bool(wm.tree_video_status)
+        row = layout.row(align=True)
+        row.scale_y = 1.4
+        row.enabled = not running
+        row.operator("tree_video.reconstruct", icon="OUTLINER_OB_ARMATURE")
+        if running:
+            col = layout.column(align=True)
+            col.label(text=f"{wm.tree_video_status.capitalize()} — {wm.tree_video_progress:.0f}%", icon="TIME")
+            col.prop(wm, "tree_video_progress", text="", slider=True)
+            col.operator("tree_video.cancel", icon="CANCEL")
+
+
+class TREE_PT_source(_TreePanel, bpy.types.Panel):
+    bl_label = "Source"
+    bl_parent_id = "TREE_PT_main"
 
     def draw(self, context):
         props = context.scene.tree_video
         col = self.layout.column()
         col.prop(props, "video_path")
-        col.prop(props, "outline_path")
+        col.prop(props, "use_frame_range")
+        sub = col.column(align=True)
+        sub.enabled = props.use_frame_range
+        sub.prop(props, "frame_start")
+        sub.prop(props, "frame_end")
+        col.prop(props, "scale")
+
+
+class TREE_PT_outline(_TreePanel, bpy.types.Panel):
+    bl_label = "Outline"
+    bl_parent_id = "TREE_PT_main"
+
+    def draw(self, context):
+        props = context.scene.tree_video
+        col = self.layout.column()
+        col.prop(props, "outline_source", expand=True)
+        if props.outline_source == "FILE":
+            col.prop(props, "outline_path")
+        else:
+            col.prop(props, "outline_mask")
+            col.operator("tree_video.open_clip", icon="CLIP")
+
+
+class TREE_PT_reconstruction(_TreePanel, bpy.types.Panel):
+    bl_label = "Reconstruction"
+    bl_parent_id = "TREE_PT_main"
+
+    def draw(self, context):
+        props = context.scene.tree_video
+        col = self.layout.column()
         col.prop(props, "levels")
         col.prop(props, "skeleton_kind")
+        col.prop(props, "conifer")
+        col.prop(props, "candidates")
+        col.prop(props, "solver")
+        col.prop(props, "show_advanced", icon="PREFERENCES")
+        if props.show_advanced:
+            box = col.box()
+            box.enabled = props.solver == "probabilistic"
+            box.prop(props, "sigma_track")
+            box.prop(props, "sigma_shape")
+            box.prop(props, "max_step")
+            box.prop(props, "max_total")
+
+
+class TREE_PT_output(_TreePanel, bpy.types.Panel):
+    bl_label = "Output"
+    bl_parent_id = "TREE_PT_main"
+
+    def draw(self, context):
+        props = context.scene.tree_video
+        col = self.layout.column()
+        col.prop(props, "collection_name")
+        col.prop(props, "replace_existing")
+        col.prop(props, "height_m")
+        col.prop(props, "build_mesh")
+
+
+class TREE_PT_export(_TreePanel, bpy.types.Panel):
+    bl_label = "Export"
+    bl_parent_id = "TREE_PT_main"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        props = context.scene.tree_video
+        col = self.layout.column()
         col.prop(props, "output_dir")
         col.prop(props, "overwrite")
-        col.operator("tree_video.trace_skeleton", icon="OUTLINER_OB_ARMATURE")
+        col.operator("tree_video.trace_skeleton", icon="EXPORT", text="Save 2D Skeleton")
 
 
-classes = (TREE_PT_main,)
-
+classes = (TREE_PT_main, TREE_PT_source, TREE_PT_outline, TREE_PT_reconstruction, TREE_PT_output, TREE_PT_export)
 
 register, unregister = bpy.utils.register_classes_factory(classes)

@@ -1,14 +1,37 @@
-"""Settings saved with the .blend, in ``scene.tree_video``."""
+"""Settings saved with the .blend (``scene.tree_video``) and the running job's status
+(``window_manager.tree_video_status``). Defaults reproduce the paper's settings."""
 import bpy
+
+from ..core.lift3d import LiftParams
+from ..core.motion import MotionParams
+
+_M = MotionParams()
+_L = LiftParams()
 
 
 class TreeVideoSettings(bpy.types.PropertyGroup):
+    # Source
     video_path: bpy.props.StringProperty(name="Video", subtype="FILE_PATH",
-                                         description="Video of the tree moving in wind (mp4/mov/avi)")
-    outline_path: bpy.props.StringProperty(name="Outline", subtype="FILE_PATH",
-                                           description="Outline of the tree in frame 1: polygon .json (pixels) or mask image")
-    output_dir: bpy.props.StringProperty(name="Output", subtype="DIR_PATH", default="//tree_from_video",
-                                         description="Folder for the skeleton and exports")
+                                         description="Video of the tree moving in wind (mp4, mov, avi)")
+    use_frame_range: bpy.props.BoolProperty(name="Frame Range", default=False,
+                                            description="Use only part of the video")
+    frame_start: bpy.props.IntProperty(name="Start", default=0, min=0,
+                                       description="First video frame to use (0-based)")
+    frame_end: bpy.props.IntProperty(name="End", default=240, min=1,
+                                     description="Video frame to stop before (0-based, exclusive)")
+    scale: bpy.props.FloatProperty(name="Scale", default=1.0, min=0.05, max=1.0, subtype="FACTOR",
+                                   description="Downscale the video by this factor for speed (1 = full size)")
+    # Outline
+    outline_source: bpy.props.EnumProperty(
+        name="Outline", default="FILE",
+        items=[("FILE", "File", "A polygon .json (pixels of frame 1) or a mask image (white = tree)"),
+               ("MASK", "Blender Mask", "A Mask drawn over the clip in the Movie Clip editor")],
+        description="Where the outline of the tree in frame 1 comes from")
+    outline_path: bpy.props.StringProperty(name="Outline File", subtype="FILE_PATH",
+                                           description="Polygon .json (pixels of frame 1) or mask image (white = tree)")
+    outline_mask: bpy.props.PointerProperty(name="Mask", type=bpy.types.Mask,
+                                            description="Mask drawn around the tree in frame 1 (Movie Clip editor)")
+    # Reconstruction
     levels: bpy.props.IntProperty(name="Hierarchy Levels", default=6, min=2, max=9,
                                   description="Levels of the binary motion hierarchy incl. the root (paper: 5-7)")
     skeleton_kind: bpy.props.EnumProperty(
@@ -16,6 +39,37 @@ class TreeVideoSettings(bpy.types.PropertyGroup):
         items=[("traced", "Traced", "Branches traced in the video, hierarchy attached through the crown"),
                ("paper", "Paper", "Cluster centroids folded toward parents (alpha = 0.4), as in the paper")],
         description="How the 2D skeleton's nodes are placed")
+    conifer: bpy.props.BoolProperty(name="Conifer Trunk", default=False,
+                                    description="Keep a straight central leader fixed in the 3D lift (conifers)")
+    candidates: bpy.props.IntProperty(name="3D Candidates", default=_L.candidates, min=4, max=256,
+                                      description="Depth offsets tried per branch push in the 3D lift (paper: L)")
+    solver: bpy.props.EnumProperty(
+        name="Motion Solver", default="probabilistic",
+        items=[("probabilistic", "Probabilistic", "Track × shape × prior per frame, root to leaf (paper §4)"),
+               ("deterministic", "Deterministic", "Sphere about the parent joint ∩ line of sight (baseline)")],
+        description="How the 3D motion is solved from the tracked 2D skeleton")
+    show_advanced: bpy.props.BoolProperty(name="Advanced", default=False,
+                                          description="Show the motion solver's σ and bounds")
+    sigma_track: bpy.props.FloatProperty(name="σ Track", default=_M.sigma_track, min=0.0005, max=0.2, precision=4,
+                                         description="Track term width, share of the tree height")
+    sigma_shape: bpy.props.FloatProperty(name="σ Shape", default=_M.sigma_shape, min=0.001, max=1.0, precision=3,
+                                         subtype="ANGLE", description="Shape term width at the trunk (radians; grows with depth)")
+    max_step: bpy.props.FloatProperty(name="Max Step", default=_M.max_step, min=0.01, max=1.0, subtype="ANGLE",
+                                      description="Largest rotation of a branch per frame (radians, per axis)")
+    max_total: bpy.props.FloatProperty(name="Max Total (Δ)", default=_M.max_total, min=0.05, max=3.14, subtype="ANGLE",
+                                       description="Largest accumulated rotation of a branch (radians)")
+    # Output
+    height_m: bpy.props.FloatProperty(name="Tree Height", default=10.0, min=0.1, max=200.0, unit="LENGTH",
+                                      description="Height of the reconstructed tree in the scene (metres)")
+    build_mesh: bpy.props.BoolProperty(name="Branch Mesh", default=True,
+                                       description="Build skinned bark tubes along the bones")
+    collection_name: bpy.props.StringProperty(name="Collection", default="Tree from Video",
+                                              description="Collection that holds the tree's armature and mesh")
+    replace_existing: bpy.props.BoolProperty(name="Replace Existing", default=False,
+                                             description="Replace a collection of the same name (else refuse)")
+    # Export
+    output_dir: bpy.props.StringProperty(name="Folder", subtype="DIR_PATH", default="//tree_from_video",
+                                         description="Folder for exported files")
     overwrite: bpy.props.BoolProperty(name="Overwrite", default=False,
                                       description="Replace existing files in the output folder")
 
@@ -27,9 +81,15 @@ def register():
     for c in classes:
         bpy.utils.register_class(c)
     bpy.types.Scene.tree_video = bpy.props.PointerProperty(type=TreeVideoSettings)
+    bpy.types.WindowManager.tree_video_status = bpy.props.StringProperty(
+        name="Status", description="What the running reconstruction is doing")
+    bpy.types.WindowManager.tree_video_progress = bpy.props.FloatProperty(
+        name="Progress", subtype="PERCENTAGE", min=0, max=100, description="Progress of the running reconstruction")
 
 
 def unregister():
+    del bpy.types.WindowManager.tree_video_progress
+    del bpy.types.WindowManager.tree_video_status
     del bpy.types.Scene.tree_video
     for c in reversed(classes):
         bpy.utils.unregister_class(c)

@@ -1,0 +1,259 @@
+"""Reconstruct: video + outline → animated tree in the scene, without freezing Blender.
+
+The core runs in a worker thread (:class:`core.job.Job`, it touches no bpy); a modal operator polls
+it on a timer, shows progress in the status bar and the panel, and Esc cancels within a second.
+The scene is only touched at the end, on the main thread, inside this operator's single undo
+step: a cancelled or failed run leaves the scene exactly as it was.
+"""
+from __future__ import annotations
+
+import os
+
+import bpy
+import numpy as np
+
+from ..core import pipeline
+from ..core.errors import InputError
+from ..core.job import Job
+from ..core.video import open_video
+from .scene_build import build_tree
+
+POLL_SECONDS = 0.1
+
+
+def settings_from(props) -> pipeline.Settings:
+    """Core settings from the panel's properties."""
+    s = pipeline.Settings(levels=props.levels, skeleton=props.skeleton_kind, scale=props.scale,
+                          frames=f"{props.frame_start}:{props.frame_end}" if props.use_frame_range else None,
+                          height_m=props.height_m)
+    s.lift.conifer = props.conifer
+    s.lift.candidates = props.candidates
+    s.motion.solver = props.solver
+    s.motion.sigma_track = props.sigma_track
+    s.motion.sigma_shape = props.sigma_shape
+    s.motion.max_step = props.max_step
+    s.motion.max_total = props.max_total
+    return s
+
+
+def mask_polygon(mask, width: int, height: int) -> np.ndarray:
+    """Pixel polygon ``(M, 2)`` of the first spline of ``mask`` (a Blender Mask drawn on the clip;
+    its coordinates are normalized to the frame, y up)."""
+    for layer in mask.layers:
+        for spline in layer.splines:
+            co = np.array([p.co[:] for p in spline.points], float).reshape(-1, 2)
+            if len(co) >= 3:
+                return np.stack([co[:, 0] * width, (1.0 - co[:, 1]) * height], axis=1)
+    raise InputError(f"mask '{mask.name}' has no closed spline with 3 or more points; "
+                     "draw the outline around the tree in the Movie Clip editor's Mask mode")
+
+
+def inputs_from(props):
+    """(video path, outline: path or pixel polygon), checked enough to fail fast on the main thread."""
+    video = bpy.path.abspath(props.video_path)
+    if not props.video_path:
+        raise InputError("no video chosen; pick the video file in the Source panel")
+    info = open_video(video)               # raises a clear InputError for missing/unreadable files
+    if props.outline_source == "MASK":
+        if props.outline_mask is None:
+            raise InputError("no outline mask chosen; draw a Mask around the tree and pick it in the Outline panel")
+        return video, mask_polygon(props.outline_mask, int(info.width), int(info.height))
+    if not props.outline_path:
+        raise InputError("no outline drawn; pick a polygon .json or a mask image in the Outline panel")
+    return video, bpy.path.abspath(props.outline_path)
+
+
+def make_work(video, outline, settings: pipeline.Settings, name: str):
+    """The worker's function: skeleton, lift and motion (pure core, no bpy)."""
+    from ..core.progress import sub_progress
+
+    def work(progress):
+        res = pipeline.run(video, outline, settings, sub_progress(progress, 0.0, 0.75))
+        tree = pipeline.build_3d(res, settings, name=name, progress=sub_progress(progress, 0.75, 1.0))
+        return res, tree
+    return work
+
+
+class TREE_OT_reconstruct(bpy.types.Operator):
+    """Reconstruct the animated tree from the video and outline (Esc cancels)"""
+
+    bl_idname = "tree_video.reconstruct"
+    bl_label = "Reconstruct"
+    bl_options = {"REGISTER", "UNDO"}
+
+    _job: Job | None = None
+    _timer = None
+
+    @classmethod
+    def poll(cls, context):
+        props = getattr(context.scene, "tree_video", None)
+        return props is not None and bool(props.video_path) and not _running()
+
+    def _start(self, context):
+        props = context.scene.tree_video
+        video, outline = inputs_from(props)
+        name = props.collection_name.strip() or "Tree from Video"
+        if bpy.data.collections.get(name) is not None and not props.replace_existing:
+            raise InputError(f"a collection named '{name}' exists; tick Replace Existing or change the name")
+        return Job(make_work(video, outline, settings_from(props), name))
+
+    def execute(self, context):
+        """Blocking run (scripts, background mode)."""
+        try:
+            job = self._start(context)
+        except InputError as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        return self._finish(context, job.run_here())
+
+    def invoke(self, context, event):
+        try:
+            self._job = self._start(context).start()
+        except InputError as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        _RUNNING.add(self._job)
+        wm = context.window_manager
+        self._timer = wm.event_timer_add(POLL_SECONDS, window=context.window)
+        wm.progress_begin(0, 100)
+        wm.modal_handler_add(self)
+        _status(context, "starting", 0.0)
+        return {"RUNNING_MODAL"}
+
+    def modal(self, context, event):
+        job = self._job
+        if event.type == "ESC" or context.window_manager.get("tree_video_cancel"):
+            job.cancel()
+            job.join(timeout=5.0)
+            self._cleanup(context)
+            self.report({"INFO"}, "reconstruction cancelled; the scene is unchanged")
+            return {"CANCELLED"}
+        if event.type != "TIMER":
+            return {"PASS_THROUGH"}
+        _status(context, job.stage, job.fraction)
+        context.window_manager.progress_update(int(100 * job.fraction))
+        if not job.done:
+            return {"RUNNING_MODAL"}
+        self._cleanup(context)
+        return self._finish(context, job)
+
+    def _finish(self, context, job: Job):
+        if job.cancelled:
+            self.report({"INFO"}, "reconstruction cancelled; the scene is unchanged")
+            return {"CANCELLED"}
+        if job.error:
+            if job.details:
+                print(job.details)
+            self.report({"ERROR"}, job.error)
+            return {"CANCELLED"}
+        props = context.scene.tree_video
+        res, tree = job.result
+        try:
+            built = build_tree(context, tree, tree.name, replace=props.replace_existing, mesh=props.build_mesh)
+        except InputError as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        for w in res.warnings:
+            self.report({"WARNING"}, w)
+        self.report({"INFO"}, f"{len(built['armature'].data.bones)} bones × {tree.n_frames} frames in "
+                              f"'{tree.name}'")
+        return {"FINISHED"}
+
+    def _cleanup(self, context):
+        wm = context.window_manager
+        if self._timer is not None:
+            wm.event_timer_remove(self._timer)
+            self._timer = None
+        wm.progress_end()
+        _RUNNING.discard(self._job)
+        if "tree_video_cancel" in wm:
+            del wm["tree_video_cancel"]
+        _status(context, "", 0.0)
+
+
+class TREE_OT_cancel(bpy.types.Operator):
+    """Stop the running reconstruction (the scene stays as it was)"""
+
+    bl_idname = "tree_video.cancel"
+    bl_label = "Cancel"
+
+    @classmethod
+    def poll(cls, context):
+        return _running()
+
+    def execute(self, context):
+        context.window_manager["tree_video_cancel"] = True
+        return {"FINISHED"}
+
+
+class TREE_OT_open_clip(bpy.types.Operator):
+    """Open the video in a Movie Clip editor to draw the outline as a Mask on frame 1"""
+
+    bl_idname = "tree_video.open_clip"
+    bl_label = "Open Clip to Draw Outline"
+
+    @classmethod
+    def poll(cls, context):
+        props = getattr(context.scene, "tree_video", None)
+        return props is not None and bool(props.video_path)
+
+    def execute(self, context):
+        path = bpy.path.abspath(context.scene.tree_video.video_path)
+        if not os.path.isfile(path):
+            self.report({"ERROR"}, f"video '{path}' does not exist; check the path in the Source panel")
+            return {"CANCELLED"}
+        clip = next((c for c in bpy.data.movieclips if bpy.path.abspath(c.filepath) == path), None)
+        clip = clip or bpy.data.movieclips.load(path)
+        area = next((a for a in context.screen.areas if a.type == "CLIP_EDITOR"), None) if context.screen else None
+        if area is None and context.area is not None:
+            area = context.area
+            area.type = "CLIP_EDITOR"
+        if area is not None:
+            space = area.spaces.active
+            space.clip = clip
+            space.mode = "MASK"
+            if space.mask is None:
+                space.mask = bpy.data.masks.new(f"{clip.name} outline")
+            context.scene.tree_video.outline_source = "MASK"
+            context.scene.tree_video.outline_mask = space.mask
+        context.scene.frame_set(1)
+        return {"FINISHED"}
+
+
+_RUNNING: set = set()
+
+
+def _running() -> bool:
+    return any(not j.done for j in _RUNNING)
+
+
+def _status(context, stage: str, fraction: float) -> None:
+    wm = context.window_manager
+    wm.tree_video_status = stage
+    wm.tree_video_progress = 100.0 * fraction
+    for window in wm.windows:
+        for area in window.screen.areas:
+            if area.type == "VIEW_3D":
+                area.tag_redraw()
+
+
+def cancel_all(timeout: float = 2.0) -> None:
+    """Stop every running job (unregister): no thread outlives the add-on."""
+    for job in list(_RUNNING):
+        job.cancel()
+        job.join(timeout)
+    _RUNNING.clear()
+
+
+classes = (TREE_OT_reconstruct, TREE_OT_cancel, TREE_OT_open_clip)
+
+_register, _unregister = bpy.utils.register_classes_factory(classes)
+
+
+def register():
+    _register()
+
+
+def unregister():
+    cancel_all()
+    _unregister()

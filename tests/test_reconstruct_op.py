@@ -1,0 +1,123 @@
+"""The Reconstruct operator and its worker job: a real run, bad input, cancel at every stage."""
+import os
+import time
+
+import bpy
+import numpy as np
+import pytest
+
+import tree_from_video
+from tree_from_video.core import pipeline
+from tree_from_video.core.job import Job
+from tree_from_video.operators import reconstruct_op
+
+from samples import committed
+
+VIDEO = os.path.join(committed("broad"), "video.mp4")
+OUTLINE = os.path.join(committed("broad"), "outline.json")
+
+
+@pytest.fixture(autouse=True)
+def addon():
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    tree_from_video.register()
+    yield bpy.context.scene.tree_video
+    tree_from_video.unregister()
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+
+
+def _ids():
+    return {a: set(getattr(bpy.data, a).keys()) for a in ("objects", "meshes", "armatures", "actions", "collections")}
+
+
+def _run_op():
+    """Run the operator blocking; background Blender raises reported errors, the wheel returns."""
+    try:
+        return bpy.ops.tree_video.reconstruct("EXEC_DEFAULT"), ""
+    except RuntimeError as exc:
+        return {"CANCELLED"}, str(exc)
+
+
+def test_reconstruct_builds_the_tree(addon):
+    addon.video_path, addon.outline_path = VIDEO, OUTLINE
+    addon.use_frame_range, addon.frame_start, addon.frame_end = True, 0, 24
+    addon.collection_name = "Oak"
+    result, err = _run_op()
+    assert result == {"FINISHED"}, err
+    coll = bpy.data.collections["Oak"]
+    rig = next(o for o in coll.objects if o.type == "ARMATURE")
+    assert len(rig.data.bones) > 50
+    assert bpy.context.scene.frame_end == 24
+    # a second run with the same name is refused unless asked, and changes nothing
+    before = _ids()
+    result, err = _run_op()
+    assert result == {"CANCELLED"} and _ids() == before
+    addon.replace_existing = True
+    assert _run_op()[0] == {"FINISHED"}
+    assert len([c for c in bpy.data.collections if c.name.startswith("Oak")]) == 1
+
+
+@pytest.mark.parametrize("case", ["no video", "missing video", "no outline", "outline outside", "empty mask"])
+def test_bad_input_is_reported_and_changes_nothing(addon, case, tmp_path):
+    addon.video_path, addon.outline_path = VIDEO, OUTLINE
+    if case == "no video":
+        addon.video_path = ""
+    elif case == "missing video":
+        addon.video_path = str(tmp_path / "nope.mp4")
+    elif case == "no outline":
+        addon.outline_path = ""
+    elif case == "outline outside":
+        p = tmp_path / "far.json"
+        p.write_text("[[2000, 2000], [2100, 2000], [2100, 2100]]")
+        addon.outline_path = str(p)
+    elif case == "empty mask":
+        addon.outline_source = "MASK"
+        addon.outline_mask = bpy.data.masks.new("empty")
+    before = _ids()
+    if case == "no video":       # poll refuses: nothing to run
+        assert not bpy.ops.tree_video.reconstruct.poll()
+        return
+    result, err = _run_op()
+    assert result == {"CANCELLED"}
+    assert _ids() == before
+
+
+def test_mask_outline_is_converted_to_pixels(addon):
+    mask = bpy.data.masks.new("outline")
+    spline = mask.layers.new().splines.new()
+    pts = [(0.25, 0.1), (0.75, 0.1), (0.75, 0.9), (0.25, 0.9)]
+    spline.points.add(len(pts) - 1)
+    for p, co in zip(spline.points, pts):
+        p.co = co
+    poly = reconstruct_op.mask_polygon(mask, 480, 360)
+    assert poly == pytest.approx(np.array([[120, 324], [360, 324], [360, 36], [120, 36]]))
+
+
+@pytest.mark.parametrize("stage", ["tracking", "hierarchy", "skeleton", "lift", "motion"])
+def test_cancel_at_every_stage_stops_within_a_second(stage):
+    s = pipeline.Settings(frames="0:60")
+    job = Job(reconstruct_op.make_work(VIDEO, OUTLINE, s, "T")).start()
+    t0 = time.monotonic()
+    while job.stage != stage and not job.done and time.monotonic() - t0 < 120:
+        time.sleep(0.005)
+    assert job.stage == stage, f"never reached {stage} (at {job.stage})"
+    t_cancel = time.monotonic()
+    job.cancel()
+    assert job.join(timeout=1.0), f"still running 1 s after cancel in {stage}"
+    print(f"{stage}: stopped {1000 * (time.monotonic() - t_cancel):.0f} ms after cancel")
+    assert job.cancelled and job.result is None and job.error is None
+
+
+def test_internal_errors_become_one_line_with_details():
+    def boom(progress):
+        raise ZeroDivisionError("x")
+    job = Job(boom).run_here()
+    assert job.error.startswith("internal error (ZeroDivisionError") and "Traceback" in job.details
+
+
+def test_unregister_stops_running_jobs():
+    job = Job(reconstruct_op.make_work(VIDEO, OUTLINE, pipeline.Settings(), "T")).start()
+    reconstruct_op._RUNNING.add(job)
+    time.sleep(0.2)
+    reconstruct_op.cancel_all(timeout=2.0)
+    assert not job.alive and not reconstruct_op._RUNNING
