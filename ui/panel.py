@@ -7,6 +7,12 @@ class _TreePanel:
     bl_region_type = "UI"
     bl_category = "Tree"
 
+    def column(self):
+        """A column in Blender's split-label style (labels left of the fields, no truncation)."""
+        self.layout.use_property_split = True
+        self.layout.use_property_decorate = False
+        return self.layout.column()
+
 
 class TREE_PT_main(_TreePanel, bpy.types.Panel):
     bl_label = "Tree from Video"
@@ -33,7 +39,7 @@ class TREE_PT_source(_TreePanel, bpy.types.Panel):
 
     def draw(self, context):
         props = context.scene.tree_video
-        col = self.layout.column()
+        col = self.column()
         col.prop(props, "video_path")
         col.prop(props, "use_frame_range")
         sub = col.column(align=True)
@@ -49,8 +55,8 @@ class TREE_PT_outline(_TreePanel, bpy.types.Panel):
 
     def draw(self, context):
         props = context.scene.tree_video
-        col = self.layout.column()
-        col.prop(props, "outline_source", expand=True)
+        col = self.column()
+        col.row().prop(props, "outline_source", expand=True)
         if props.outline_source == "FILE":
             col.prop(props, "outline_path")
         else:
@@ -64,7 +70,7 @@ class TREE_PT_reconstruction(_TreePanel, bpy.types.Panel):
 
     def draw(self, context):
         props = context.scene.tree_video
-        col = self.layout.column()
+        col = self.column()
         col.prop(props, "levels")
         col.prop(props, "skeleton_kind")
         col.prop(props, "conifer")
@@ -86,7 +92,7 @@ class TREE_PT_output(_TreePanel, bpy.types.Panel):
 
     def draw(self, context):
         props = context.scene.tree_video
-        col = self.layout.column()
+        col = self.column()
         col.prop(props, "collection_name")
         col.prop(props, "replace_existing")
         col.prop(props, "height_m")
@@ -100,7 +106,7 @@ class TREE_PT_export(_TreePanel, bpy.types.Panel):
 
     def draw(self, context):
         props = context.scene.tree_video
-        col = self.layout.column()
+        col = self.column()
         col.prop(props, "output_dir")
         col.prop(props, "overwrite")
         col.operator("tree_video.trace_skeleton", icon="EXPORT", text="Save 2D Skeleton")

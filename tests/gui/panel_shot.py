@@ -1,0 +1,59 @@
+"""GUI set-up for a screenshot of the panel: register the add-on from the repo, reconstruct the
+sample tree, open the sidebar on the "Tree" tab with every sub-panel expanded.
+
+    real-blender gui-shot docs/panel.png --size 1600x900 -- blender --factory-startup --python tests/gui/panel_shot.py
+"""
+import importlib.util
+import os
+import sys
+
+import bpy
+
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+spec = importlib.util.spec_from_file_location("tree_from_video", os.path.join(ROOT, "__init__.py"),
+                                              submodule_search_locations=[ROOT])
+pkg = importlib.util.module_from_spec(spec)
+sys.modules["tree_from_video"] = pkg
+spec.loader.exec_module(pkg)
+pkg.register()
+
+bpy.context.preferences.view.show_splash = False
+for ob in list(bpy.data.objects):
+    bpy.data.objects.remove(ob)
+props = bpy.context.scene.tree_video
+props.video_path = os.path.join(ROOT, "sample_videos", "broad", "video.mp4")
+props.outline_path = os.path.join(ROOT, "sample_videos", "broad", "outline.json")
+props.use_frame_range, props.frame_start, props.frame_end = True, 0, 60
+props.show_advanced = True
+props.collection_name = "Broad Tree"
+print("reconstruct:", bpy.ops.tree_video.reconstruct("EXEC_DEFAULT"), flush=True)
+
+state = {"step": 0}
+
+
+def setup_ui():
+    screen = bpy.context.window.screen
+    for area in screen.areas:
+        if area.type != "VIEW_3D":
+            continue
+        space = area.spaces.active
+        space.show_region_ui = True
+        space.shading.type = "SOLID"
+        region = next(r for r in area.regions if r.type == "UI")
+        try:
+            region.active_panel_category = "Tree"
+        except (TypeError, AttributeError):
+            return 0.3            # the tab list does not exist yet: try again after a redraw
+        r3d = space.region_3d
+        r3d.view_perspective = "ORTHO"
+        r3d.view_rotation = (0.7071, 0.7071, 0.0, 0.0)      # front view
+        r3d.view_location = (0.0, 0.0, 5.0)
+        r3d.view_distance = 14.0
+        bpy.context.scene.frame_set(30)
+        area.tag_redraw()
+        print("ui ready", flush=True)
+        return None
+    return 0.3
+
+
+bpy.app.timers.register(setup_ui, first_interval=1.0)
