@@ -36,6 +36,14 @@ if [ $rc -ne 2 ] || ! grep -q "without USD" "$OUT/log" || [ -e "$OUT/usd" ]; the
 fi
 echo "batch under Blender 4.3: all files written; --usd refused clearly"
 
+echo "== Blender 4.3 GUI: screenshot of the panel after a reconstruction"
+"$RB" gui-shot "$OUT/panel.png" --size 1600x900 --wait 10 -- \
+  blender --factory-startup --python tests/gui/panel_shot.py > "$OUT/gui.log" 2>&1 \
+  || { tail -20 "$OUT/gui.log"; echo "panel screenshot failed or blank" >&2; exit 1; }
+grep -q "reconstruct: {'FINISHED'}" "$OUT/gui.log" || { tail -20 "$OUT/gui.log"; echo "no reconstruction in the GUI run" >&2; exit 1; }
+grep -q "ui ready" "$OUT/gui.log" || { echo "the sidebar never opened on the Tree tab" >&2; exit 1; }
+echo "panel screenshot: $(stat -c %s "$OUT/panel.png") bytes"
+
 VENV=/tmp/tree_from_video-bpy53
 want=$(sha256sum requirements-bpy53.txt | cut -d' ' -f1)
 if [ "$(cat "$VENV/.requirements.sha" 2>/dev/null)" != "$want" ]; then

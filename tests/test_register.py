@@ -49,3 +49,23 @@ def test_operator_reports_bad_video_without_traceback(tmp_path):
         assert not (tmp_path / "out").exists()
     finally:
         tree_from_video.unregister()
+
+
+def test_panel_labels_and_operators_are_registered():
+    from tree_from_video.operators import reconstruct_op
+    from tree_from_video.ui import panel
+    tree_from_video.register()
+    try:
+        labels = {c.bl_label for c in panel.classes}
+        assert labels == {"Tree from Video", "Source", "Outline", "Reconstruction", "Output", "Export"}
+        assert all(c.is_registered and c.bl_category == "Tree" and c.bl_space_type == "VIEW_3D" for c in panel.classes)
+        assert all(c.bl_parent_id == "TREE_PT_main" for c in panel.classes if c is not panel.TREE_PT_main)
+        for idname in ("tree_video.reconstruct", "tree_video.cancel", "tree_video.open_clip", "tree_video.trace_skeleton"):
+            mod, name = idname.split(".")
+            assert hasattr(getattr(bpy.ops, mod), name)
+        assert {c.bl_idname for c in reconstruct_op.classes} >= {"tree_video.reconstruct", "tree_video.cancel"}
+        # every setting has a tooltip
+        props = bpy.context.scene.tree_video.bl_rna.properties
+        assert all(p.description for p in props if p.identifier not in ("rna_type", "name"))
+    finally:
+        tree_from_video.unregister()
