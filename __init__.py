@@ -7,13 +7,37 @@ tests, worker threads and batch runs; ``operators/`` and ``ui/`` are loaded by :
 __version__ = "0.1.0"
 
 
+CLI_ID = "tree_from_video"
+_cli_handle = None
+
+
+def _cli(argv: list[str]) -> int:
+    """``blender -c tree_from_video VIDEO --outline ... --out DIR [options]``: the batch job."""
+    from . import batch
+    try:
+        return batch.main(argv)
+    except SystemExit as exc:          # argparse: --help (0) or a usage error (2)
+        return int(exc.code or 0)
+
+
 def register():
+    global _cli_handle
+    import bpy
+
     from . import operators, ui
     operators.register()
     ui.register()
+    if hasattr(bpy.utils, "register_cli_command"):
+        _cli_handle = bpy.utils.register_cli_command(CLI_ID, _cli)
 
 
 def unregister():
+    global _cli_handle
+    import bpy
+
     from . import operators, ui
+    if _cli_handle is not None:
+        bpy.utils.unregister_cli_command(_cli_handle)
+        _cli_handle = None
     ui.unregister()
     operators.unregister()

@@ -19,7 +19,10 @@ PACKAGE = "tree_from_video"
 
 
 def _package():
-    """The extension package: the installed add-on inside Blender, else this folder loaded as it."""
+    """The extension package: the one this module belongs to (installed extension, e.g.
+    ``bl_ext.user_default.tree_from_video``), else this folder loaded as ``tree_from_video``."""
+    if __package__:
+        return sys.modules[__package__]
     if PACKAGE in sys.modules:
         return sys.modules[PACKAGE]
     here = os.path.dirname(os.path.abspath(__file__))
@@ -92,7 +95,7 @@ def _check_out(out: str, names: list[str], force: bool, InputError) -> None:
         raise InputError(f"{os.path.join(out, existing[0])} exists; pass --force to overwrite or choose another --out")
 
 
-def _blender_outputs(InputError):
+def _blender_outputs(pkg, InputError):
     """The bpy side (operators/outputs.py), or a clear error when this Python has no Blender."""
     try:
         import bpy  # noqa: F401
@@ -100,18 +103,19 @@ def _blender_outputs(InputError):
         raise InputError("--fbx/--usd/--gltf/--blend/--preview need Blender's Python: run with the "
                          "project's venv (make setup) or as blender -b --python batch.py -- ...") from None
     from importlib import import_module
-    return import_module(f"{PACKAGE}.operators.outputs")
+    return import_module(f"{pkg.__name__}.operators.outputs")
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run the batch job on ``argv``; returns the exit code (argparse errors exit 2 via SystemExit)."""
     args = build_parser().parse_args(argv)
     pkg = _package()
     from importlib import import_module
-    errors = import_module(f"{PACKAGE}.core.errors")
+    errors = import_module(f"{pkg.__name__}.core.errors")
     try:
-        pipeline = import_module(f"{PACKAGE}.core.pipeline")
-        model = import_module(f"{PACKAGE}.core.model")
-        overlay = import_module(f"{PACKAGE}.core.overlay")
+        pipeline = import_module(f"{pkg.__name__}.core.pipeline")
+        model = import_module(f"{pkg.__name__}.core.model")
+        overlay = import_module(f"{pkg.__name__}.core.overlay")
         wanted = {"fbx": args.fbx, "usd": args.usd, "gltf": args.gltf, "blend": args.blend,
                   "preview": args.preview}
         blender_files = [n for k, n in (("fbx", "tree.fbx"), ("usd", "tree.usdc"), ("gltf", "tree.glb"),
@@ -124,7 +128,7 @@ def main(argv: list[str] | None = None) -> int:
         settings.motion.solver = args.solver
         pipeline.check_settings(settings)
         _check_out(args.out, names, args.force, errors.InputError)
-        outputs = _blender_outputs(errors.InputError) if blender_files else None
+        outputs = _blender_outputs(pkg, errors.InputError) if blender_files else None
         if outputs is not None:
             outputs.check_wanted(wanted)
         cb = _progress_printer(args.quiet)
@@ -138,7 +142,7 @@ def main(argv: list[str] | None = None) -> int:
         name = os.path.splitext(os.path.basename(args.video))[0] or "Tree"
         tree = pipeline.build_3d(res, settings, name=f"Tree {name}", progress=cb)
         tree.meta.update(meta)
-        tree3d = import_module(f"{PACKAGE}.core.tree3d")
+        tree3d = import_module(f"{pkg.__name__}.core.tree3d")
         tree3d.save_tree(os.path.join(args.out, "tree3d.npz"), tree)
         if args.npz:
             arrays = model.skeleton_arrays(res.skeleton, meta)

@@ -69,3 +69,23 @@ def test_panel_labels_and_operators_are_registered():
         assert all(p.description for p in props if p.identifier not in ("rna_type", "name"))
     finally:
         tree_from_video.unregister()
+
+
+def test_cli_command_runs_the_batch_job(tmp_path):
+    """``blender -c tree_from_video ...`` calls this; exit codes as batch.py."""
+    import os
+
+    from samples import committed
+    tree_from_video.register()
+    try:
+        assert tree_from_video._cli_handle is not None
+        assert tree_from_video._cli(["--help"]) == 0
+        assert tree_from_video._cli(["/nope.mp4", "--outline", "x.json", "--out", str(tmp_path / "o")]) == 2
+        folder = committed("broad")
+        code = tree_from_video._cli([os.path.join(folder, "video.mp4"), "--outline",
+                                     os.path.join(folder, "outline.json"), "--out", str(tmp_path / "ok"),
+                                     "--frames", "0:24", "--no-video", "--quiet"])
+        assert code == 0 and (tmp_path / "ok" / "tree3d.npz").exists()
+    finally:
+        tree_from_video.unregister()
+    assert tree_from_video._cli_handle is None
