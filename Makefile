@@ -3,7 +3,7 @@ PY := .venv/bin/python
 SAMPLE ?= broad
 REAL_BLENDER := ../shared/tools/real-blender
 
-.PHONY: setup demo test test-core test-blender bench clean
+.PHONY: setup demo test test-core test-blender bench clean extension test-extension
 
 setup:
 	bash scripts/setup.sh
@@ -22,6 +22,15 @@ test-core: setup
 
 test-blender:
 	bash scripts/test_blender.sh
+
+# Extension zips with the scipy/OpenCV wheels, one per platform, in dist/ (wheels cached in wheels/).
+# Limit with e.g. `make extension EXT_ARGS="--platform linux-x64"`.
+extension: setup
+	$(PY) scripts/build_extension.py $(EXT_ARGS)
+
+# Build the linux-x64 zip, install it into the real Blender 4.3 and a Python 3.11 venv, reconstruct.
+test-extension: setup
+	bash scripts/test_extension.sh
 
 bench: setup
 	$(PY) benchmarks/bench_skeleton.py

@@ -8,4 +8,5 @@ cd "$(dirname "$0")/.."
 rc=$?
 if [ $rc -eq 5 ]; then echo "test: pytest collected no tests" >&2; exit 1; fi
 [ $rc -eq 0 ] || exit $rc
-bash scripts/test_blender.sh
+bash scripts/test_blender.sh || exit 1
+bash scripts/test_extension.sh
