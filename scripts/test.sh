@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
-# The whole test suite: pytest on the bpy 5.0.1 wheel (Python 3.11, numpy 1.26), then the core and
-# add-on registration inside a real Blender 4.3 (Python 3.13, numpy 2.x). pytest's exit 5 (no tests
-# collected) counts as a failure.
+# The whole test suite: pytest on the bpy 5.0.1 wheel (Python 3.11, numpy 1.26); the add-on inside a
+# real Blender 4.3 (tests, batch run, GUI screenshot) and on bpy 5.3 (Python 3.13, numpy 2.5); then
+# the built extension installed into Blender 4.3 and its wheels into a clean Python 3.11 venv.
+# pytest's exit 5 (no tests collected) counts as a failure.
 set -uo pipefail
 cd "$(dirname "$0")/.."
 .venv/bin/python -m pytest -q -rs tests "$@"
