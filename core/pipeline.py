@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
+from . import cache
 from .appearance import AppearanceAccumulator, AppearanceMaps
 from .errors import InputError
 from .hierarchy import Hierarchy, HierarchyParams, build_hierarchy
@@ -32,6 +33,7 @@ class Settings:
     skeleton: str = "traced"
     frames: str | None = None       # "A:B", 0-based, B exclusive
     scale: float = 1.0              # downscale factor for the video (0 < scale <= 1)
+    cache_dir: str | None = None    # keep tracks + hierarchy here, keyed by video and settings
     track: TrackParams = field(default_factory=TrackParams)
     trace: TraceParams = field(default_factory=TraceParams)
     lift: LiftParams = field(default_factory=LiftParams)
@@ -100,8 +102,21 @@ def run(video: str, outline_path, settings: Settings | None = None,
         outline = load_outline(outline_path, info.width, info.height, s.scale)
     else:
         outline = polygon_outline(np.asarray(outline_path, float) * s.scale, info.width, info.height)
-    tracks, maps = track_video(info, outline, start, stop, s.track, sub_progress(progress, 0.0, 0.7))
-    hier = build_hierarchy(tracks, HierarchyParams(levels=s.levels), sub_progress(progress, 0.7, 0.85))
+    cached = key = None
+    if s.cache_dir:
+        key = cache.stage_key(video, outline.mask, start, stop, s.scale, s.track, s.levels)
+        cached = cache.load(s.cache_dir, key)
+    if cached is not None:
+        tracks, maps, hier = cached
+        report(progress, "tracking (cached)", 0.85)
+    else:
+        tracks, maps = track_video(info, outline, start, stop, s.track, sub_progress(progress, 0.0, 0.7))
+        hier = build_hierarchy(tracks, HierarchyParams(levels=s.levels), sub_progress(progress, 0.7, 0.85))
+        if key is not None:
+            try:
+                cache.save(s.cache_dir, key, tracks, maps, hier)
+            except OSError:
+                pass                # a cache that cannot be written only costs time
     sk_prog = sub_progress(progress, 0.85, 1.0)
     if s.skeleton == "paper":
         skel = paper_skeleton(tracks, hier, outline, progress=sk_prog)

@@ -21,11 +21,24 @@ from .scene_build import build_tree
 POLL_SECONDS = 0.1
 
 
+def cache_dir() -> str:
+    """Where tracks and hierarchies are cached: the extension's user folder when installed as an
+    extension (Blender 4.2+), else a folder in the system's temp directory."""
+    package = __package__.rsplit(".", 1)[0]
+    if package.startswith("bl_ext.") and hasattr(bpy.utils, "extension_path_user"):
+        try:
+            return bpy.utils.extension_path_user(package, path="cache", create=True)
+        except (ValueError, OSError):
+            pass
+    import tempfile
+    return os.path.join(tempfile.gettempdir(), "tree_from_video_cache")
+
+
 def settings_from(props) -> pipeline.Settings:
-    """Core settings from the panel's properties."""
+    """Core settings from the panel's properties (tracking is cached per video and settings)."""
     s = pipeline.Settings(levels=props.levels, skeleton=props.skeleton_kind, scale=props.scale,
                           frames=f"{props.frame_start}:{props.frame_end}" if props.use_frame_range else None,
-                          height_m=props.height_m)
+                          height_m=props.height_m, cache_dir=cache_dir())
     s.lift.conifer = props.conifer
     s.lift.candidates = props.candidates
     s.motion.solver = props.solver

@@ -68,3 +68,29 @@ def test_progress_reaches_the_end_and_cancel_stops(broad):
     with pytest.raises(Cancelled):
         pipeline.run(os.path.join(folder, "video.mp4"), os.path.join(folder, "outline.json"),
                      pipeline.Settings(frames="0:30"), cancel_in_tracking)
+
+
+def test_cache_skips_tracking_and_gives_the_same_skeleton(tmp_path):
+    import time
+    folder = committed("broad")
+    s = pipeline.Settings(frames="0:60", cache_dir=str(tmp_path / "cache"))
+    t0 = time.perf_counter()
+    first = pipeline.run(os.path.join(folder, "video.mp4"), os.path.join(folder, "outline.json"), s)
+    t_first = time.perf_counter() - t0
+    assert len(list((tmp_path / "cache").iterdir())) == 1
+    stages = []
+    t0 = time.perf_counter()
+    again = pipeline.run(os.path.join(folder, "video.mp4"), os.path.join(folder, "outline.json"), s,
+                         lambda stage, f: stages.append(stage))
+    t_again = time.perf_counter() - t0
+    assert "tracking" not in stages and "tracking (cached)" in stages
+    assert np.array_equal(first.skeleton.nodes2d, again.skeleton.nodes2d)
+    print(f"first run {t_first:.2f} s, cached {t_again:.2f} s")
+    # another frame range is another key; a corrupt file is ignored and rebuilt
+    s2 = pipeline.Settings(frames="0:50", cache_dir=s.cache_dir)
+    pipeline.run(os.path.join(folder, "video.mp4"), os.path.join(folder, "outline.json"), s2)
+    assert len(list((tmp_path / "cache").iterdir())) == 2
+    for f in (tmp_path / "cache").iterdir():
+        f.write_bytes(b"garbage")
+    third = pipeline.run(os.path.join(folder, "video.mp4"), os.path.join(folder, "outline.json"), s)
+    assert np.array_equal(first.skeleton.nodes2d, third.skeleton.nodes2d)
