@@ -20,10 +20,19 @@ def _cli(argv: list[str]) -> int:
         return int(exc.code or 0)
 
 
+_degraded = False
+
+
 def register():
-    global _cli_handle
+    global _cli_handle, _degraded
     import bpy
 
+    from .ui import missing_deps
+    missing = missing_deps.missing_dependencies()
+    if missing:                       # a panel that names the missing wheels, nothing else
+        _degraded = True
+        missing_deps.register(missing)
+        return
     from . import operators, ui
     operators.register()
     ui.register()
@@ -32,9 +41,14 @@ def register():
 
 
 def unregister():
-    global _cli_handle
+    global _cli_handle, _degraded
     import bpy
 
+    if _degraded:
+        from .ui import missing_deps
+        missing_deps.unregister()
+        _degraded = False
+        return
     from . import operators, ui
     if _cli_handle is not None:
         bpy.utils.unregister_cli_command(_cli_handle)

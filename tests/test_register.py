@@ -89,3 +89,26 @@ def test_cli_command_runs_the_batch_job(tmp_path):
     finally:
         tree_from_video.unregister()
     assert tree_from_video._cli_handle is None
+
+
+def test_missing_dependencies_show_a_panel_naming_the_wheel(monkeypatch, capsys):
+    import importlib.util
+
+    from tree_from_video.ui import missing_deps
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "cv2" else real(name, *a))
+    tree_from_video.register()
+    try:
+        assert missing_deps.TREE_PT_missing.is_registered
+        assert missing_deps.TREE_PT_missing.missing == ["opencv-contrib-python-headless"]
+        assert "missing opencv-contrib-python-headless" in capsys.readouterr().out
+        assert not hasattr(bpy.types.Scene, "tree_video")          # nothing half-registered
+    finally:
+        tree_from_video.unregister()
+    assert not missing_deps.TREE_PT_missing.is_registered
+    monkeypatch.undo()
+    tree_from_video.register()                                      # and it recovers once they exist
+    try:
+        assert _registered()
+    finally:
+        tree_from_video.unregister()
