@@ -44,6 +44,19 @@ grep -q "reconstruct: {'FINISHED'}" "$OUT/gui.log" || { tail -20 "$OUT/gui.log";
 grep -q "ui ready" "$OUT/gui.log" || { echo "the sidebar never opened on the Tree tab" >&2; exit 1; }
 echo "panel screenshot: $(stat -c %s "$OUT/panel.png") bytes"
 
+echo "== Blender 4.3 GUI: Reconstruct as a user starts it (INVOKE, modal), then cancelled"
+"$RB" gui-shot "$OUT/modal.png" --size 1200x800 --wait 25 -- \
+  blender --factory-startup --python tests/gui/modal_run.py > "$OUT/modal.log" 2>&1 || true
+grep -E "invoke returned|stages seen|finished" "$OUT/modal.log" || true
+grep -q "invoke returned {'RUNNING_MODAL'}" "$OUT/modal.log" \
+  && grep -q "finished: collection present with 2 objects" "$OUT/modal.log" \
+  || { tail -20 "$OUT/modal.log"; echo "the modal Reconstruct did not finish with the tree" >&2; exit 1; }
+"$RB" gui-shot "$OUT/cancel.png" --size 1200x800 --wait 15 -- \
+  blender --factory-startup --python tests/gui/modal_run.py -- --cancel > "$OUT/cancel.log" 2>&1 || true
+grep -E "cancel requested|after cancel" "$OUT/cancel.log" || true
+grep -q "after cancel: collection absent, objects 3" "$OUT/cancel.log" \
+  || { tail -20 "$OUT/cancel.log"; echo "cancelling the modal Reconstruct left something behind" >&2; exit 1; }
+
 VENV=/tmp/tree_from_video-bpy53
 want=$(sha256sum requirements-bpy53.txt | cut -d' ' -f1)
 if [ "$(cat "$VENV/.requirements.sha" 2>/dev/null)" != "$want" ]; then
