@@ -16,6 +16,7 @@ from ..core import pipeline
 from ..core.errors import InputError
 from ..core.job import Job
 from ..core.video import open_video
+from . import clip_overlay
 from .scene_build import build_tree
 
 POLL_SECONDS = 0.1
@@ -87,33 +88,23 @@ def make_work(video, outline, settings: pipeline.Settings, name: str):
     return work
 
 
-class TREE_OT_reconstruct(bpy.types.Operator):
-    """Reconstruct the animated tree from the video and outline (Esc cancels)"""
-
-    bl_idname = "tree_video.reconstruct"
-    bl_label = "Reconstruct"
-    bl_options = {"REGISTER", "UNDO"}
+class _JobOperator:
+    """Runs :meth:`make_job` in a worker thread driven by a modal timer (``invoke``), or blocking
+    (``execute``: scripts, background mode), then :meth:`done` on the main thread."""
 
     _job: Job | None = None
     _timer = None
+    what = "reconstruction"
 
-    @classmethod
-    def poll(cls, context):
-        props = getattr(context.scene, "tree_video", None)
-        return props is not None and bool(props.video_path) and not _running()
+    def make_job(self, context) -> Job:
+        raise NotImplementedError
 
-    def _start(self, context):
-        props = context.scene.tree_video
-        video, outline = inputs_from(props)
-        name = props.collection_name.strip() or "Tree from Video"
-        if bpy.data.collections.get(name) is not None and not props.replace_existing:
-            raise InputError(f"a collection named '{name}' exists; tick Replace Existing or change the name")
-        return Job(make_work(video, outline, settings_from(props), name))
+    def done(self, context, result) -> set:
+        raise NotImplementedError
 
     def execute(self, context):
-        """Blocking run (scripts, background mode)."""
         try:
-            job = self._start(context)
+            job = self.make_job(context)
         except InputError as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
@@ -121,7 +112,7 @@ class TREE_OT_reconstruct(bpy.types.Operator):
 
     def invoke(self, context, event):
         try:
-            self._job = self._start(context).start()
+            self._job = self.make_job(context).start()
         except InputError as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
@@ -139,7 +130,7 @@ class TREE_OT_reconstruct(bpy.types.Operator):
             job.cancel()
             job.join(timeout=5.0)
             self._cleanup(context)
-            self.report({"INFO"}, "reconstruction cancelled; the scene is unchanged")
+            self.report({"INFO"}, f"{self.what} cancelled; the scene is unchanged")
             return {"CANCELLED"}
         if event.type != "TIMER":
             return {"PASS_THROUGH"}
@@ -152,25 +143,14 @@ class TREE_OT_reconstruct(bpy.types.Operator):
 
     def _finish(self, context, job: Job):
         if job.cancelled:
-            self.report({"INFO"}, "reconstruction cancelled; the scene is unchanged")
+            self.report({"INFO"}, f"{self.what} cancelled; the scene is unchanged")
             return {"CANCELLED"}
         if job.error:
             if job.details:
                 print(job.details)
             self.report({"ERROR"}, job.error)
             return {"CANCELLED"}
-        props = context.scene.tree_video
-        res, tree = job.result
-        try:
-            built = build_tree(context, tree, tree.name, replace=props.replace_existing, mesh=props.build_mesh)
-        except InputError as exc:
-            self.report({"ERROR"}, str(exc))
-            return {"CANCELLED"}
-        for w in res.warnings:
-            self.report({"WARNING"}, w)
-        self.report({"INFO"}, f"{len(built['armature'].data.bones)} bones × {tree.n_frames} frames in "
-                              f"'{tree.name}'")
-        return {"FINISHED"}
+        return self.done(context, job.result)
 
     def _cleanup(self, context):
         wm = context.window_manager
@@ -182,6 +162,73 @@ class TREE_OT_reconstruct(bpy.types.Operator):
         if "tree_video_cancel" in wm:
             del wm["tree_video_cancel"]
         _status(context, "", 0.0)
+
+
+class TREE_OT_reconstruct(_JobOperator, bpy.types.Operator):
+    """Reconstruct the animated tree from the video and outline (Esc cancels)"""
+
+    bl_idname = "tree_video.reconstruct"
+    bl_label = "Reconstruct"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        props = getattr(context.scene, "tree_video", None)
+        return props is not None and bool(props.video_path) and not _running()
+
+    def make_job(self, context) -> Job:
+        props = context.scene.tree_video
+        video, outline = inputs_from(props)
+        name = props.collection_name.strip() or "Tree from Video"
+        if bpy.data.collections.get(name) is not None and not props.replace_existing:
+            raise InputError(f"a collection named '{name}' exists; tick Replace Existing or change the name")
+        return Job(make_work(video, outline, settings_from(props), name))
+
+    def done(self, context, result):
+        props = context.scene.tree_video
+        res, tree = result
+        try:
+            built = build_tree(context, tree, tree.name, replace=props.replace_existing, mesh=props.build_mesh)
+        except InputError as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        clip_overlay.store(res)
+        for w in res.warnings:
+            self.report({"WARNING"}, w)
+        self.report({"INFO"}, f"{len(built['armature'].data.bones)} bones × {tree.n_frames} frames in "
+                              f"'{tree.name}'")
+        return {"FINISHED"}
+
+
+class TREE_OT_preview(_JobOperator, bpy.types.Operator):
+    """Track the video and build the 2D skeleton only, then show tracks and skeleton over the clip
+    in the Movie Clip editor (nothing is added to the scene)"""
+
+    bl_idname = "tree_video.preview"
+    bl_label = "Track & Preview"
+    bl_options = {"REGISTER"}
+    what = "tracking preview"
+
+    @classmethod
+    def poll(cls, context):
+        return TREE_OT_reconstruct.poll(context)
+
+    def make_job(self, context) -> Job:
+        video, outline = inputs_from(context.scene.tree_video)
+        settings = settings_from(context.scene.tree_video)
+        return Job(lambda progress: pipeline.run(video, outline, settings, progress))
+
+    def done(self, context, result):
+        clip_overlay.store(result)
+        for w in result.warnings:
+            self.report({"WARNING"}, w)
+        self.report({"INFO"}, f"{result.tracks.points.shape[1]} tracks, {result.skeleton.n_nodes} nodes: "
+                              "see them over the clip in the Movie Clip editor")
+        for window in context.window_manager.windows:
+            for area in window.screen.areas:
+                if area.type == "CLIP_EDITOR":
+                    area.tag_redraw()
+        return {"FINISHED"}
 
 
 class TREE_OT_cancel(bpy.types.Operator):
@@ -258,15 +305,17 @@ def cancel_all(timeout: float = 2.0) -> None:
     _RUNNING.clear()
 
 
-classes = (TREE_OT_reconstruct, TREE_OT_cancel, TREE_OT_open_clip)
+classes = (TREE_OT_reconstruct, TREE_OT_preview, TREE_OT_cancel, TREE_OT_open_clip)
 
 _register, _unregister = bpy.utils.register_classes_factory(classes)
 
 
 def register():
     _register()
+    clip_overlay.register()
 
 
 def unregister():
     cancel_all()
+    clip_overlay.unregister()
     _unregister()

@@ -44,6 +44,14 @@ grep -q "reconstruct: {'FINISHED'}" "$OUT/gui.log" || { tail -20 "$OUT/gui.log";
 grep -q "ui ready" "$OUT/gui.log" || { echo "the sidebar never opened on the Tree tab" >&2; exit 1; }
 echo "panel screenshot: $(stat -c %s "$OUT/panel.png") bytes"
 
+echo "== Blender 4.3 GUI: Track & Preview drawn over the clip in the Movie Clip editor"
+"$RB" gui-shot "$OUT/clip.png" --size 1600x900 --wait 10 -- \
+  blender --factory-startup --python tests/gui/clip_shot.py > "$OUT/clip.log" 2>&1 \
+  || { tail -20 "$OUT/clip.log"; echo "clip editor screenshot failed or blank" >&2; exit 1; }
+grep -q "preview: {'FINISHED'}" "$OUT/clip.log" && grep -q "clip ready" "$OUT/clip.log" \
+  || { tail -20 "$OUT/clip.log"; echo "the preview did not run in the GUI" >&2; exit 1; }
+echo "clip overlay screenshot: $(stat -c %s "$OUT/clip.png") bytes"
+
 echo "== Blender 4.3 GUI: Reconstruct as a user starts it (INVOKE, modal), then cancelled"
 "$RB" gui-shot "$OUT/modal.png" --size 1200x800 --wait 25 -- \
   blender --factory-startup --python tests/gui/modal_run.py > "$OUT/modal.log" 2>&1 || true

@@ -121,3 +121,26 @@ def test_unregister_stops_running_jobs():
     time.sleep(0.2)
     reconstruct_op.cancel_all(timeout=2.0)
     assert not job.alive and not reconstruct_op._RUNNING
+
+
+def test_preview_keeps_tracks_and_skeleton_for_the_clip_editor(addon):
+    from tree_from_video.operators import clip_overlay
+    from samples import load_truth
+    addon.video_path, addon.outline_path = VIDEO, OUTLINE
+    addon.use_frame_range, addon.frame_start, addon.frame_end = True, 10, 40
+    before = _ids()
+    result, err = (bpy.ops.tree_video.preview("EXEC_DEFAULT"), "")
+    assert result == {"FINISHED"} and _ids() == before          # nothing added to the scene
+    assert clip_overlay.frame_geometry(VIDEO, 10) is None        # before the range
+    assert clip_overlay.frame_geometry("/other.mp4", 11) is None
+    pts, seg = clip_overlay.frame_geometry(VIDEO, 11)           # clip frame 11 = video frame 10
+    assert len(pts) > 100 and len(seg) % 2 == 0
+    assert ((pts >= 0) & (pts <= 1)).all()
+    # the skeleton's root (first segment's start is an edge from the root) sits at the true base
+    truth = load_truth(committed("broad"))
+    base = truth["nodes2d_image"][10, 0] / [480, 360]
+    root = clip_overlay._data["nodes"][0, 0] / [480, 360]
+    assert np.abs(root - base).max() < 0.03
+    tree_from_video.unregister()
+    assert clip_overlay.frame_geometry(VIDEO, 11) is None        # cleared with the add-on
+    tree_from_video.register()

@@ -26,6 +26,9 @@ class TREE_PT_main(_TreePanel, bpy.types.Panel):
         row.scale_y = 1.4
         row.enabled = not running
         row.operator("tree_video.reconstruct", icon="OUTLINER_OB_ARMATURE")
+        row = layout.row()
+        row.enabled = not running
+        row.operator("tree_video.preview", icon="TRACKING")
         if running:
             col = layout.column(align=True)
             col.label(text=f"{wm.tree_video_status.capitalize()} — {wm.tree_video_progress:.0f}%", icon="TIME")
