@@ -18,6 +18,12 @@ class TREE_PT_main(_TreePanel, bpy.types.Panel):
     bl_label = "Tree from Video"
     bl_idname = "TREE_PT_main"
 
+    def draw_header_preset(self, context):
+        row = self.layout.row(align=True)
+        row.menu("TREE_MT_presets", text="Presets", icon="PRESET")
+        row.operator("tree_video.preset_add", text="", icon="ADD")
+        row.operator("tree_video.preset_add", text="", icon="REMOVE").remove_active = True
+
     def draw(self, context):
         layout = self.layout
         wm = context.window_manager
