@@ -31,6 +31,7 @@ class Settings:
 
     levels: int = 6
     skeleton: str = "traced"
+    fold_alpha: float = 0.4         # paper skeleton: x'_i += α (x'_j − x'_i)
     frames: str | None = None       # "A:B", 0-based, B exclusive
     scale: float = 1.0              # downscale factor for the video (0 < scale <= 1)
     cache_dir: str | None = None    # keep tracks + hierarchy here, keyed by video and settings
@@ -119,7 +120,7 @@ def run(video: str, outline_path, settings: Settings | None = None,
                 pass                # a cache that cannot be written only costs time
     sk_prog = sub_progress(progress, 0.85, 1.0)
     if s.skeleton == "paper":
-        skel = paper_skeleton(tracks, hier, outline, progress=sk_prog)
+        skel = paper_skeleton(tracks, hier, outline, alpha=s.fold_alpha, progress=sk_prog)
     else:
         skel = traced_skeleton(tracks, hier, outline, maps, s.trace, sk_prog)
     return Result(info, outline, start, stop, tracks, hier, maps, skel)

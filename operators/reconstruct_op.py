@@ -37,7 +37,8 @@ def cache_dir() -> str:
 
 def settings_from(props) -> pipeline.Settings:
     """Core settings from the panel's properties (tracking is cached per video and settings)."""
-    s = pipeline.Settings(levels=props.levels, skeleton=props.skeleton_kind, scale=props.scale,
+    s = pipeline.Settings(levels=props.levels, skeleton=props.skeleton_kind, fold_alpha=props.fold_alpha,
+                          scale=props.scale,
                           frames=f"{props.frame_start}:{props.frame_end}" if props.use_frame_range else None,
                           height_m=props.height_m, cache_dir=cache_dir())
     s.lift.conifer = props.conifer

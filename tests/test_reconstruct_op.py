@@ -144,3 +144,36 @@ def test_preview_keeps_tracks_and_skeleton_for_the_clip_editor(addon):
     tree_from_video.unregister()
     assert clip_overlay.frame_geometry(VIDEO, 11) is None        # cleared with the add-on
     tree_from_video.register()
+
+
+def test_export_buttons_write_the_tree_and_refuse_bad_targets(addon, tmp_path):
+    from tree_from_video.operators import export
+    addon.video_path, addon.outline_path = VIDEO, OUTLINE
+    addon.use_frame_range, addon.frame_start, addon.frame_end = True, 0, 24
+    addon.collection_name = "Export Me"
+    assert not bpy.ops.tree_video.export.poll()                      # nothing built yet
+    assert _run_op()[0] == {"FINISHED"}
+    addon.output_dir = str(tmp_path / "exports")
+    formats = ["FBX", "GLB"] + (["USD"] if export.has_usd() else [])
+    for fmt in formats:
+        addon.export_format = fmt
+        assert bpy.ops.tree_video.export() == {"FINISHED"}
+    names = sorted(os.listdir(tmp_path / "exports"))
+    assert names == sorted({"FBX": "Export_Me.fbx", "GLB": "Export_Me.glb", "USD": "Export_Me.usdc"}[f]
+                           for f in formats)
+    fbx = tmp_path / "exports" / "Export_Me.fbx"
+    before = fbx.stat().st_mtime_ns
+    addon.export_format = "FBX"
+    try:                                                              # exists, no overwrite
+        result = bpy.ops.tree_video.export()
+    except RuntimeError:
+        result = {"CANCELLED"}
+    assert result == {"CANCELLED"} and fbx.stat().st_mtime_ns == before
+    blocker = tmp_path / "a_file"
+    blocker.write_text("x")
+    addon.output_dir = str(blocker / "sub")                           # unwritable: a file in the way
+    try:
+        result = bpy.ops.tree_video.export()
+    except RuntimeError:
+        result = {"CANCELLED"}
+    assert result == {"CANCELLED"} and blocker.read_text() == "x"

@@ -61,6 +61,7 @@ def test_panel_labels_and_operators_are_registered():
         assert all(c.is_registered and c.bl_category == "Tree" and c.bl_space_type == "VIEW_3D" for c in panel.classes)
         assert all(c.bl_parent_id == "TREE_PT_main" for c in panel.classes if c is not panel.TREE_PT_main)
         for idname in ("tree_video.reconstruct", "tree_video.preview", "tree_video.cancel", "tree_video.open_clip",
+                       "tree_video.export",
                        "tree_video.trace_skeleton"):
             mod, name = idname.split(".")
             assert hasattr(getattr(bpy.ops, mod), name)

@@ -2,6 +2,27 @@
 import bpy
 
 
+_INFO_CACHE: dict = {}
+
+
+def _video_info(path: str):
+    """Size, frame count and fps of the chosen video (probed once per path), or None."""
+    import os
+
+    from ..core.errors import InputError
+    from ..core.video import open_video
+    full = bpy.path.abspath(path) if path else ""
+    if not full or not os.path.isfile(full):
+        return None
+    key = (full, os.path.getmtime(full))
+    if key not in _INFO_CACHE:
+        try:
+            _INFO_CACHE[key] = open_video(full)
+        except InputError:
+            _INFO_CACHE[key] = None
+    return _INFO_CACHE[key]
+
+
 class _TreePanel:
     bl_space_type = "VIEW_3D"
     bl_region_type = "UI"
@@ -50,6 +71,10 @@ class TREE_PT_source(_TreePanel, bpy.types.Panel):
         props = context.scene.tree_video
         col = self.column()
         col.prop(props, "video_path")
+        info = _video_info(props.video_path)
+        if info is not None:
+            col.label(text=f"{info.width}×{info.height}, {info.frame_count} frames, {info.fps:.3g} fps",
+                      icon="FILE_MOVIE")
         col.prop(props, "use_frame_range")
         sub = col.column(align=True)
         sub.enabled = props.use_frame_range
@@ -82,6 +107,8 @@ class TREE_PT_reconstruction(_TreePanel, bpy.types.Panel):
         col = self.column()
         col.prop(props, "levels")
         col.prop(props, "skeleton_kind")
+        if props.skeleton_kind == "paper":
+            col.prop(props, "fold_alpha")
         col.prop(props, "conifer")
         col.prop(props, "candidates")
         col.prop(props, "solver")
@@ -117,8 +144,10 @@ class TREE_PT_export(_TreePanel, bpy.types.Panel):
         props = context.scene.tree_video
         col = self.column()
         col.prop(props, "output_dir")
+        col.prop(props, "export_format")
         col.prop(props, "overwrite")
-        col.operator("tree_video.trace_skeleton", icon="EXPORT", text="Save 2D Skeleton")
+        col.operator("tree_video.export", icon="EXPORT")
+        col.operator("tree_video.trace_skeleton", icon="FILE", text="Save 2D Skeleton (.npz)")
 
 
 classes = (TREE_PT_main, TREE_PT_source, TREE_PT_outline, TREE_PT_reconstruction, TREE_PT_output, TREE_PT_export)

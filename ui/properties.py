@@ -39,6 +39,9 @@ class TreeVideoSettings(bpy.types.PropertyGroup):
         items=[("traced", "Traced", "Branches traced in the video, hierarchy attached through the crown"),
                ("paper", "Paper", "Cluster centroids folded toward parents (alpha = 0.4), as in the paper")],
         description="How the 2D skeleton's nodes are placed")
+    fold_alpha: bpy.props.FloatProperty(name="Fold α", default=0.4, min=0.0, max=1.0, subtype="FACTOR",
+                                        description="Paper skeleton: share of the way each node moves toward its "
+                                                    "parent (x'_i += α(x'_j − x'_i); paper: 0.4)")
     conifer: bpy.props.BoolProperty(name="Conifer Trunk", default=False,
                                     description="Keep a straight central leader fixed in the 3D lift (conifers)")
     candidates: bpy.props.IntProperty(name="3D Candidates", default=_L.candidates, min=4, max=256,
@@ -72,6 +75,12 @@ class TreeVideoSettings(bpy.types.PropertyGroup):
                                          description="Folder for exported files")
     overwrite: bpy.props.BoolProperty(name="Overwrite", default=False,
                                       description="Replace existing files in the output folder")
+    export_format: bpy.props.EnumProperty(
+        name="Format", default="FBX",
+        items=[("FBX", "FBX", "Armature + skinned mesh, baked animation (game engines, Maya, Unreal)"),
+               ("GLB", "glTF", "Binary glTF with skin and animation from t = 0 (web, Godot, Unity)"),
+               ("USD", "USD", "UsdSkel skeleton and animation (needs a Blender built with USD)")],
+        description="File format of the export")
 
 
 classes = (TreeVideoSettings,)
