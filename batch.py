@@ -44,7 +44,8 @@ def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="batch.py", description="Reconstruct a moving tree skeleton from a video.")
     p.add_argument("video", help="input video file (mp4/mov/avi)")
     p.add_argument("--outline", required=True,
-                   help="tree outline in frame 1: JSON list of [x, y] pixel points, or a mask image (white = tree)")
+                   help="tree outline in frame 1: JSON list of [x, y] pixel points, a mask image (white = tree), "
+                        "or 'auto' (what sways in the first seconds)")
     p.add_argument("--out", required=True, help="output folder (created if missing)")
     p.add_argument("--npz", action="store_true",
                    help="also write DIR/result.npz: parents (N,), nodes2d (F, N, 2) px, nodes3d (F, N, 3) m, level (N,), fps")

@@ -93,13 +93,17 @@ def run(video: str, outline_path, settings: Settings | None = None,
         progress: ProgressFn | None = None) -> Result:
     """Video + outline → tracks, hierarchy and moving 2D skeleton. Raises InputError on bad input.
 
-    ``outline_path``: a polygon .json or mask image path, or a polygon ``(M, 2)`` array in pixels
-    of the original video (e.g. from a Blender Mask)."""
+    ``outline_path``: a polygon .json or mask image path, ``"auto"`` (what sways in the first
+    seconds, :mod:`.auto_outline`), or a polygon ``(M, 2)`` array in pixels of the original video
+    (e.g. from a Blender Mask)."""
     s = settings or Settings()
     check_settings(s)
     info = open_video(video, s.scale)
     start, stop = parse_frame_range(s.frames, info.frame_count)
-    if isinstance(outline_path, (str, os.PathLike)):
+    if isinstance(outline_path, str) and outline_path == "auto":
+        from .auto_outline import auto_outline
+        outline = auto_outline(info, start)
+    elif isinstance(outline_path, (str, os.PathLike)):
         outline = load_outline(outline_path, info.width, info.height, s.scale)
     else:
         outline = polygon_outline(np.asarray(outline_path, float) * s.scale, info.width, info.height)

@@ -69,6 +69,8 @@ def inputs_from(props):
     if not props.video_path:
         raise InputError("no video chosen; pick the video file in the Source panel")
     info = open_video(video)               # raises a clear InputError for missing/unreadable files
+    if props.outline_source == "AUTO":
+        return video, "auto"
     if props.outline_source == "MASK":
         if props.outline_mask is None:
             raise InputError("no outline mask chosen; draw a Mask around the tree and pick it in the Outline panel")

@@ -93,6 +93,8 @@ class TREE_PT_outline(_TreePanel, bpy.types.Panel):
         col.row().prop(props, "outline_source", expand=True)
         if props.outline_source == "FILE":
             col.prop(props, "outline_path")
+        elif props.outline_source == "AUTO":
+            col.label(text="Found from motion; check it with Track & Preview", icon="INFO")
         else:
             col.prop(props, "outline_mask")
             col.operator("tree_video.open_clip", icon="CLIP")
