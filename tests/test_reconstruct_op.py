@@ -129,7 +129,7 @@ def test_preview_keeps_tracks_and_skeleton_for_the_clip_editor(addon):
     addon.video_path, addon.outline_path = VIDEO, OUTLINE
     addon.use_frame_range, addon.frame_start, addon.frame_end = True, 10, 40
     before = _ids()
-    result, err = (bpy.ops.tree_video.preview("EXEC_DEFAULT"), "")
+    result = bpy.ops.tree_video.preview("EXEC_DEFAULT")
     assert result == {"FINISHED"} and _ids() == before          # nothing added to the scene
     assert clip_overlay.frame_geometry(VIDEO, 10) is None        # before the range
     assert clip_overlay.frame_geometry("/other.mp4", 11) is None

@@ -3,23 +3,15 @@ the clip (Track & Preview, then the clip at frame 30).
 
     real-blender gui-shot docs/clip_overlay.png --size 1600x900 -- blender --factory-startup --python tests/gui/clip_shot.py
 """
-import importlib.util
 import os
 import sys
 
 import bpy
 
-ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-spec = importlib.util.spec_from_file_location("tree_from_video", os.path.join(ROOT, "__init__.py"),
-                                              submodule_search_locations=[ROOT])
-pkg = importlib.util.module_from_spec(spec)
-sys.modules["tree_from_video"] = pkg
-spec.loader.exec_module(pkg)
-pkg.register()
-bpy.context.preferences.view.show_splash = False
-props = bpy.context.scene.tree_video
-props.video_path = os.path.join(ROOT, "sample_videos", "broad", "video.mp4")
-props.outline_path = os.path.join(ROOT, "sample_videos", "broad", "outline.json")
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))   # this folder: _addon.py
+from _addon import register_with_sample  # noqa: E402
+
+props = register_with_sample()
 print("preview:", bpy.ops.tree_video.preview("EXEC_DEFAULT"), flush=True)
 
 

@@ -1,23 +1,15 @@
 """GUI check of the non-blocking Reconstruct (INVOKE): it must return at once, report progress while
 Blender keeps redrawing, and end with the tree in the scene. Prints lines the test greps."""
-import importlib.util
 import os
 import sys
 import time
 
 import bpy
 
-ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-spec = importlib.util.spec_from_file_location("tree_from_video", os.path.join(ROOT, "__init__.py"),
-                                              submodule_search_locations=[ROOT])
-pkg = importlib.util.module_from_spec(spec)
-sys.modules["tree_from_video"] = pkg
-spec.loader.exec_module(pkg)
-pkg.register()
-bpy.context.preferences.view.show_splash = False
-props = bpy.context.scene.tree_video
-props.video_path = os.path.join(ROOT, "sample_videos", "broad", "video.mp4")
-props.outline_path = os.path.join(ROOT, "sample_videos", "broad", "outline.json")
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))   # this folder: _addon.py
+from _addon import register_with_sample  # noqa: E402
+
+props = register_with_sample()
 props.collection_name = "Modal Tree"
 CANCEL = "--cancel" in sys.argv
 state = {"t0": None, "seen": set(), "ticks": 0}

@@ -3,26 +3,17 @@ sample tree, open the sidebar on the "Tree" tab with every sub-panel expanded.
 
     real-blender gui-shot docs/panel.png --size 1600x900 -- blender --factory-startup --python tests/gui/panel_shot.py
 """
-import importlib.util
 import os
 import sys
 
 import bpy
 
-ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-spec = importlib.util.spec_from_file_location("tree_from_video", os.path.join(ROOT, "__init__.py"),
-                                              submodule_search_locations=[ROOT])
-pkg = importlib.util.module_from_spec(spec)
-sys.modules["tree_from_video"] = pkg
-spec.loader.exec_module(pkg)
-pkg.register()
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))   # this folder: _addon.py
+from _addon import register_with_sample  # noqa: E402
 
-bpy.context.preferences.view.show_splash = False
-for ob in list(bpy.data.objects):
+props = register_with_sample()
+for ob in list(bpy.data.objects):          # an empty stage for the tree
     bpy.data.objects.remove(ob)
-props = bpy.context.scene.tree_video
-props.video_path = os.path.join(ROOT, "sample_videos", "broad", "video.mp4")
-props.outline_path = os.path.join(ROOT, "sample_videos", "broad", "outline.json")
 props.use_frame_range, props.frame_start, props.frame_end = True, 0, 60
 props.show_advanced = True
 props.collection_name = "Broad Tree"
