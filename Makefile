@@ -3,7 +3,7 @@ PY := .venv/bin/python
 SAMPLE ?= broad
 REAL_BLENDER := ../shared/tools/real-blender
 
-.PHONY: setup demo test test-core test-blender bench clean extension test-extension
+.PHONY: setup demo test test-core test-blender bench clean extension extension-per-python test-extension
 
 setup:
 	bash scripts/setup.sh
@@ -27,6 +27,12 @@ test-blender:
 # Limit with e.g. `make extension EXT_ARGS="--platform linux-x64"`.
 extension: setup
 	$(PY) scripts/build_extension.py $(EXT_ARGS)
+
+# Separate zips per Blender Python (dist/cp311: Blender 4.2-5.0, dist/cp313: 5.1+): safe for Blender
+# 4.2.0, whose installer may not filter wheels by Python tag.
+extension-per-python: setup
+	$(PY) scripts/build_extension.py --python 3.11 $(EXT_ARGS)
+	$(PY) scripts/build_extension.py --python 3.13 $(EXT_ARGS)
 
 # Build the linux-x64 zip, install it into the real Blender 4.3 and a Python 3.11 venv, reconstruct.
 test-extension: setup
