@@ -1,4 +1,4 @@
-"""Operator: video + outline → 2D skeleton file (blocking; the modal version comes with the panel)."""
+"""Operator: save the moving 2D skeleton of the video as skeleton.npz (Export panel; blocking)."""
 import os
 
 import bpy
