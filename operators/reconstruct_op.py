@@ -227,10 +227,7 @@ class TREE_OT_preview(_JobOperator, bpy.types.Operator):
             self.report({"WARNING"}, w)
         self.report({"INFO"}, f"{result.tracks.points.shape[1]} tracks, {result.skeleton.n_nodes} nodes: "
                               "see them over the clip in the Movie Clip editor")
-        for window in context.window_manager.windows:
-            for area in window.screen.areas:
-                if area.type == "CLIP_EDITOR":
-                    area.tag_redraw()
+        _redraw(context, "CLIP_EDITOR")
         return {"FINISHED"}
 
 
@@ -294,9 +291,14 @@ def _status(context, stage: str, fraction: float) -> None:
     wm = context.window_manager
     wm.tree_video_status = stage
     wm.tree_video_progress = 100.0 * fraction
-    for window in wm.windows:
+    _redraw(context, "VIEW_3D")
+
+
+def _redraw(context, area_type: str) -> None:
+    """Redraw every area of ``area_type`` in every window."""
+    for window in context.window_manager.windows:
         for area in window.screen.areas:
-            if area.type == "VIEW_3D":
+            if area.type == area_type:
                 area.tag_redraw()
 
 
