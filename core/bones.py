@@ -21,6 +21,7 @@ from __future__ import annotations
 import numpy as np
 
 from .errors import InputError
+from .skeleton2d import edges_of
 
 #: Directions shorter than this (metres) have no usable orientation.
 EPS_LENGTH = 1e-9
@@ -30,9 +31,7 @@ EPS_LENGTH = 1e-9
 
 def bone_edges(parents: np.ndarray) -> np.ndarray:
     """``(B, 2)`` int (head node, tail node) for every node with a parent: one bone each."""
-    parents = np.asarray(parents)
-    child = np.flatnonzero(parents >= 0)
-    return np.stack([parents[child], child], axis=1).astype(np.int64)
+    return edges_of(parents).astype(np.int64)
 
 
 def bone_names(parents: np.ndarray) -> list[str]:

@@ -48,9 +48,6 @@ class Hierarchy:
     level: np.ndarray
     members: list
 
-    def children(self, c: int) -> np.ndarray:
-        return np.flatnonzero(self.parent == c)
-
     @property
     def leaves(self) -> np.ndarray:
         has_child = np.zeros(len(self.parent), bool)

@@ -49,8 +49,14 @@ class Skeleton2D:
 
     def edges(self) -> np.ndarray:
         """``(N-1, 2)`` (parent, child) index pairs."""
-        c = np.flatnonzero(self.parents >= 0)
-        return np.stack([self.parents[c], c], axis=1)
+        return edges_of(self.parents)
+
+
+def edges_of(parents: np.ndarray) -> np.ndarray:
+    """``(N-1, 2)`` (parent, child) index pairs, one per node with a parent, in node order."""
+    parents = np.asarray(parents)
+    c = np.flatnonzero(parents >= 0)
+    return np.stack([parents[c], c], axis=1)
 
 
 def children_lists(parents: np.ndarray) -> list[list[int]]:

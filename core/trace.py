@@ -50,12 +50,16 @@ class TraceParams:
     max_twigs: int = 300             # at most this many twig targets (many tracks in a large video)
 
 
+def relative_decay(x: np.ndarray, inside: np.ndarray) -> np.ndarray:
+    """``exp(−x / median(x inside the outline))``: 1 where x is small for this tree, → 0 where large."""
+    scale = float(np.median(x[inside])) if inside.any() else 1.0
+    return np.exp(-x / max(scale, 1e-3))
+
+
 def bark_evidence(maps: AppearanceMaps) -> np.ndarray:
     """``E (h, w)`` in [0, 1]: dark in most frames × steady over time, zero outside the outline."""
     inside = maps.mask
-    s = float(np.median(maps.std[inside])) if inside.any() else 1.0
-    steady = np.exp(-maps.std / max(s, 1e-3))
-    e = maps.dark * steady
+    e = maps.dark * relative_decay(maps.std, inside)
     e[~inside] = 0.0
     return e.astype(np.float32)
 
@@ -81,11 +85,11 @@ def sky_likeness(maps: AppearanceMaps) -> np.ndarray:
         return np.zeros_like(maps.mean)
     lo, hi = np.percentile(maps.mean[inside], [50, 97])
     bright = np.clip((maps.mean - lo) / max(hi - lo, 1.0), 0, 1)
-    steady = np.exp(-maps.std / max(float(np.median(maps.std[inside])), 1e-3))
+    steady = relative_decay(maps.std, inside)
     first = cv2.GaussianBlur(maps.first.mean(-1).astype(np.float32), (0, 0), 1.5)
     grad = cv2.GaussianBlur(np.hypot(cv2.Sobel(first, cv2.CV_32F, 1, 0), cv2.Sobel(first, cv2.CV_32F, 0, 1)),
                             (0, 0), 2.0)
-    smooth = np.exp(-grad / max(float(np.median(grad[inside])), 1e-3))
+    smooth = relative_decay(grad, inside)
     return cv2.GaussianBlur((bright * steady * smooth).astype(np.float32), (0, 0), 1.0)
 
 

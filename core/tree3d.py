@@ -42,8 +42,8 @@ class Tree3D:
 
     def edges(self) -> np.ndarray:
         """``(N-1, 2)`` (parent, child) pairs: one bone per edge, named after the child node."""
-        c = np.flatnonzero(self.parents >= 0)
-        return np.stack([self.parents[c], c], axis=1)
+        from .skeleton2d import edges_of
+        return edges_of(self.parents)
 
 
 def pipe_radii(parents: np.ndarray, tip_radius: float, exponent: float = 2.0) -> np.ndarray:

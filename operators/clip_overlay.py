@@ -18,21 +18,15 @@ _data: dict = {}
 
 def store(res) -> None:
     """Keep what to draw from a pipeline result: image-space tracks and skeleton per frame."""
+    from ..core.overlay import to_image          # frame-1 coordinates → each frame's image
     tr, sk = res.tracks, res.skeleton
-    F = tr.n_frames
-    inv = np.stack([_inverse(tr.camera[t]) for t in range(F)])                  # (F, 2, 3)
-    pts = np.einsum("fij,fpj->fpi", inv[:, :, :2], tr.points.astype(np.float64)) + inv[:, None, :, 2]
-    nodes = np.einsum("fij,fnj->fni", inv[:, :, :2], sk.nodes2d.astype(np.float64)) + inv[:, None, :, 2]
+    pts = np.stack([to_image(tr.points[t].astype(np.float64), tr.camera[t]) for t in range(tr.n_frames)])
+    nodes = np.stack([to_image(sk.nodes2d[t].astype(np.float64), tr.camera[t]) for t in range(tr.n_frames)])
     _data.clear()
     _data.update(video=os.path.abspath(res.info.path), size=(res.info.width / res.info.scale,
                                                               res.info.height / res.info.scale),
                  scale=res.info.scale, start=res.start, tracks=pts.astype(np.float32), valid=tr.valid,
                  nodes=nodes.astype(np.float32), edges=sk.edges())
-
-
-def _inverse(cam):
-    import cv2
-    return cv2.invertAffineTransform(np.asarray(cam, np.float64))
 
 
 def clear() -> None:
