@@ -101,6 +101,21 @@ class Envelope:
         return pts[r > 0]
 
 
+def envelope_to_meta(env: Envelope, scale: float) -> dict:
+    """Ω as JSON-able lists in metres (``scale`` metres per px), for :attr:`Tree3D.meta`."""
+    return {"z": (env.z * scale).round(6).tolist(), "centre": (env.centre * scale).round(6).tolist(),
+            "radius": (env.radius * scale).round(6).tolist()}
+
+
+def envelope_from_meta(meta: dict) -> Envelope | None:
+    """The envelope stored by :func:`envelope_to_meta` in a tree's ``meta["envelope"]`` (metres),
+    or None when the tree has none."""
+    e = meta.get("envelope")
+    if not e:
+        return None
+    return Envelope(np.asarray(e["z"], float), np.asarray(e["centre"], float), np.asarray(e["radius"], float))
+
+
 def envelope_from_outline(outline: Outline, base_px: np.ndarray) -> Envelope:
     """Ω from the outline mask: per image row, centre = middle of the row's extent and radius =
     half its width, in plane coordinates relative to ``base_px`` (x, y) pixels."""

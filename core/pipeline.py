@@ -12,7 +12,7 @@ from . import cache
 from .appearance import AppearanceAccumulator, AppearanceMaps
 from .errors import InputError
 from .hierarchy import Hierarchy, HierarchyParams, build_hierarchy
-from .lift3d import LiftParams, lift
+from .lift3d import LiftParams, envelope_to_meta, lift
 from .motion import MotionParams, solve_motion
 from .outline import Outline, load_outline, polygon_outline
 from .progress import ProgressFn, report, sub_progress
@@ -145,6 +145,7 @@ def build_3d(res: Result, s: Settings | None = None, name: str = "Tree",
     scale = s.height_m / height_px
     radius = pipe_radii(sk.parents, s.tip_radius * s.height_m, s.pipe_exponent)
     meta = {"height_px": height_px, "metres_per_px": scale, "solver": s.motion.solver,
-            "conifer": s.lift.conifer, "mu_deg": float(np.degrees(lifted.mu))}
+            "conifer": s.lift.conifer, "mu_deg": float(np.degrees(lifted.mu)),
+            "envelope": envelope_to_meta(lifted.envelope, scale)}
     return Tree3D(sk.parents.copy(), (mo.nodes * scale).astype(np.float32), radius, sk.level.copy(),
                   sk.fps, name, meta)
