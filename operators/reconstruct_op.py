@@ -16,7 +16,7 @@ from ..core import pipeline
 from ..core.errors import InputError
 from ..core.job import Job
 from ..core.video import open_video
-from . import clip_overlay
+from . import annotation, clip_overlay
 from .scene_build import build_tree
 
 POLL_SECONDS = 0.1
@@ -71,6 +71,8 @@ def inputs_from(props):
     info = open_video(video)               # raises a clear InputError for missing/unreadable files
     if props.outline_source == "AUTO":
         return video, "auto"
+    if props.outline_source == "ANNOTATION":
+        return video, annotation.video_annotation_polygon(video, int(info.width), int(info.height))
     if props.outline_source == "MASK":
         if props.outline_mask is None:
             raise InputError("no outline mask chosen; draw a Mask around the tree and pick it in the Outline panel")
@@ -247,7 +249,8 @@ class TREE_OT_cancel(bpy.types.Operator):
 
 
 class TREE_OT_open_clip(bpy.types.Operator):
-    """Open the video in a Movie Clip editor to draw the outline as a Mask on frame 1"""
+    """Open the video in a Movie Clip editor to draw the outline on frame 1: as a Mask, or with the
+    Annotate tool when the outline source is Annotation"""
 
     bl_idname = "tree_video.open_clip"
     bl_label = "Open Clip to Draw Outline"
@@ -262,8 +265,7 @@ class TREE_OT_open_clip(bpy.types.Operator):
         if not os.path.isfile(path):
             self.report({"ERROR"}, f"video '{path}' does not exist; check the path in the Source panel")
             return {"CANCELLED"}
-        clip = next((c for c in bpy.data.movieclips if bpy.path.abspath(c.filepath) == path), None)
-        clip = clip or bpy.data.movieclips.load(path)
+        clip = annotation.clip_for_video(path) or bpy.data.movieclips.load(path)
         area = next((a for a in context.screen.areas if a.type == "CLIP_EDITOR"), None) if context.screen else None
         if area is None and context.area is not None:
             area = context.area
@@ -271,11 +273,15 @@ class TREE_OT_open_clip(bpy.types.Operator):
         if area is not None:
             space = area.spaces.active
             space.clip = clip
-            space.mode = "MASK"
-            if space.mask is None:
-                space.mask = bpy.data.masks.new(f"{clip.name} outline")
-            context.scene.tree_video.outline_source = "MASK"
-            context.scene.tree_video.outline_mask = space.mask
+            if context.scene.tree_video.outline_source == "ANNOTATION":
+                space.mode = "TRACKING"
+                annotation.use_annotate_tool(context, area)
+            else:
+                space.mode = "MASK"
+                if space.mask is None:
+                    space.mask = bpy.data.masks.new(f"{clip.name} outline")
+                context.scene.tree_video.outline_source = "MASK"
+                context.scene.tree_video.outline_mask = space.mask
         context.scene.frame_set(1)
         return {"FINISHED"}
 

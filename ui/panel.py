@@ -95,9 +95,17 @@ class TREE_PT_outline(_TreePanel, bpy.types.Panel):
             col.prop(props, "outline_path")
         elif props.outline_source == "AUTO":
             col.label(text="Found from motion; check it with Track & Preview", icon="INFO")
+        elif props.outline_source == "ANNOTATION":
+            from ..operators import annotation
+            col.operator("tree_video.open_clip", icon="TRACKER")
+            hint = col.column(align=True)
+            hint.label(text="Annotate tool (clip toolbar): draw a", icon="GREASEPENCIL")
+            hint.label(text="closed line around the tree on frame 1", icon="BLANK1")
+            ok, text = annotation.status(props.video_path)
+            col.label(text=text, icon="CHECKMARK" if ok else "ERROR")
         else:
             col.prop(props, "outline_mask")
-            col.operator("tree_video.open_clip", icon="CLIP")
+            col.operator("tree_video.open_clip", icon="TRACKER")
 
 
 class TREE_PT_reconstruction(_TreePanel, bpy.types.Panel):

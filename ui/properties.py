@@ -27,7 +27,9 @@ class TreeVideoSettings(bpy.types.PropertyGroup):
         items=[("FILE", "File", "A polygon .json (pixels of frame 1) or a mask image (white = tree)"),
                ("MASK", "Blender Mask", "A Mask drawn over the clip in the Movie Clip editor"),
                ("AUTO", "Automatic", "What sways in the first seconds while the background stays still "
-                                     "(best effort: check it with Track & Preview)")],
+                                     "(best effort: check it with Track & Preview)"),
+               ("ANNOTATION", "Annotation", "A closed line drawn around the tree with the Annotate tool over "
+                                           "the video's clip in the Movie Clip editor, on frame 1")],
         description="Where the outline of the tree in frame 1 comes from")
     outline_path: bpy.props.StringProperty(name="Outline File", subtype="FILE_PATH",
                                            description="Polygon .json (pixels of frame 1) or mask image (white = tree)")
