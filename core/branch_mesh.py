@@ -1,0 +1,247 @@
+"""Geometry of the skinned branch mesh (pure numpy; ``operators/scene_build.py`` puts it in Blender).
+
+One closed tube per bone, ``K`` rings of ``S`` vertices each, capped at both ends:
+
+* **Curliness** (paper §3.3, Flash & Hogan): the tube's centre line is the bone bent by a lateral
+  offset along the minimum-jerk profile of :func:`details.curly_branch`,
+  ``c(τ) = head + τ (tail − head) + o · 4 s(τ)(1 − s(τ))``, ``s = 10τ³ − 15τ⁴ + 6τ⁵``. The offset
+  ``o`` is perpendicular to the bone, ``|o| ≤ curliness ·`` :data:`CURL_SHARE` ``· length``
+  (deterministic per seed). Its lateral velocity vanishes at both ends, so the curve leaves the head
+  and reaches the tail along the straight bone: where a child continues its parent the joint has
+  exactly the bones' own angle (curliness adds no kink). Rings are perpendicular to the curve.
+* **Bark**: every ring's radius is ``r(θ) = r0 (1 + Σ_i b_i sin(ω_i θ + φ_i))`` (:func:`details.bark_radius`)
+  with integer ω_i (below S/2, so 8-sided tubes do not alias), so each ring closes seamlessly;
+  ``b_i`` from :data:`details.BARK_PRESETS` ("smooth": Σ b ≤ 0.5 %, "rough": 1–5 % of r0).
+  The phases drift with the arc length (the ridges wind slowly and continue from a branch into
+  the child that continues it).
+* **UVs**: ``u`` around (0..1, a seam at θ = 0), ``v`` = arc length of the centre line from the
+  trunk base ÷ the thickest tube's circumference (square texels on the trunk): continuous along a
+  branch (``v`` at a child's head equals ``v`` at its parent's tail).
+* **Weights**: every ring belongs to its bone with weight 1 (``vert_bone``).
+
+With ``curliness = 0`` and ``bark = "none"`` the default is 2 rings per bone: the straight tapered
+tubes of earlier versions, vertex for vertex.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import bones as bn
+from .details import BARK_PRESETS, minimum_jerk, random_bark
+from .errors import InputError
+
+#: the largest lateral offset of a curly tube at curliness 1, share of its bone's length
+CURL_SHARE = 0.12
+#: rings per bone when curly (``rings = 0``)
+CURLY_RINGS = 6
+#: bark phase drift, radians per unit of v (one texture tile), at most
+BARK_DRIFT = 1.0
+BARK_KINDS = ("none",) + tuple(BARK_PRESETS)
+
+
+@dataclass
+class MeshParams:
+    """Branch mesh settings: ``sides`` S ≥ 3 vertices per ring; ``curliness`` 0..1; ``bark`` one of
+    :data:`BARK_KINDS`; ``rings`` K per bone (0 = automatic: 2 if straight, :data:`CURLY_RINGS`
+    if curly); ``seed`` for the offsets and the bark."""
+
+    sides: int = 8
+    curliness: float = 0.0
+    bark: str = "none"
+    rings: int = 0
+    seed: int = 0
+
+    def ring_count(self) -> int:
+        if self.rings:
+            return int(self.rings)
+        return CURLY_RINGS if self.curliness > 0 else 2
+
+
+def check_params(p: MeshParams) -> None:
+    """Raise :class:`InputError` naming a bad setting."""
+    if not isinstance(p.sides, (int, np.integer)) or p.sides < 3:
+        raise InputError(f"tubes need at least 3 sides (got {p.sides})")
+    if not 0.0 <= float(p.curliness) <= 1.0:
+        raise InputError(f"curliness {p.curliness} out of range; use 0..1")
+    if p.bark not in BARK_KINDS:
+        raise InputError(f"unknown bark '{p.bark}'; choose one of {', '.join(BARK_KINDS)}")
+    if p.rings and p.rings < 2:
+        raise InputError(f"a tube needs at least 2 rings per bone (got {p.rings})")
+
+
+def branch_radii(parents: np.ndarray, radius: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Tube radii at each bone's head and tail, ``(B,)`` each, metres.
+
+    The tail takes its node's radius. The head takes the parent node's radius if the bone
+    continues its parent branch (it is the thickest child), else the smaller of the two: a side
+    branch starts as thick as itself, not as the trunk it leaves."""
+    edges = bn.bone_edges(parents)
+    radius = np.asarray(radius, np.float64)
+    r_tail = radius[edges[:, 1]]
+    thickest = np.zeros(len(parents))
+    np.maximum.at(thickest, edges[:, 0], r_tail)
+    main = r_tail >= thickest[edges[:, 0]]
+    r_head = np.where(main, radius[edges[:, 0]], np.minimum(radius[edges[:, 0]], r_tail))
+    return r_head, r_tail
+
+
+def bark_terms(kind: str, sides: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``(amplitudes, freqs, phases, drift)`` of the bark ``kind`` for ``sides``-gon rings: the terms
+    of :func:`details.random_bark` with each integer frequency folded below S/2
+    (``ω ← 2 + (ω − 2) mod (S/2 − 2)`` for S ≥ 8, else 1), plus a phase drift per term in
+    ±:data:`BARK_DRIFT` rad per unit of v. ``"none"`` gives empty arrays."""
+    if kind == "none":
+        z = np.zeros(0)
+        return z, z.astype(np.int64), z, z
+    amp, freqs, phases = random_bark(kind, seed=seed)
+    top = sides // 2 - 1                       # highest frequency an S-gon shows without aliasing
+    freqs = np.where(top >= 3, 2 + (freqs - 2) % max(top - 1, 1), 1).astype(np.int64)
+    drift = np.random.default_rng(seed + 7919).uniform(-BARK_DRIFT, BARK_DRIFT, len(amp))
+    return amp, freqs, phases, drift
+
+
+def _arc_lengths(parents, edges, parent_bone, length):
+    """Arc length ``(N,)`` from the root to every node along bones of ``length (B,)``."""
+    arc = np.zeros(len(parents))
+    depth = bn.bone_depths(parent_bone)
+    for d in range(depth.max() + 1):
+        idx = np.flatnonzero(depth == d)
+        arc[edges[idx, 1]] = arc[edges[idx, 0]] + length[idx]
+    return arc
+
+
+def curl_offsets(rest: np.ndarray, length: np.ndarray, curliness: float, seed: int) -> np.ndarray:
+    """Lateral offsets ``o (B, 3)`` metres: perpendicular to each bone (``rest (B, 3, 3)``, Y along
+    the bone), direction uniform about it, size ``curliness · CURL_SHARE · length · m`` with ``m``
+    uniform in [0.5, 1] (deterministic per ``seed``)."""
+    B = len(length)
+    if curliness <= 0 or B == 0:
+        return np.zeros((B, 3))
+    rng = np.random.default_rng(seed)
+    psi = rng.uniform(0, 2 * math.pi, B)
+    m = rng.uniform(0.5, 1.0, B)
+    d = np.cos(psi)[:, None] * rest[:, :, 0] + np.sin(psi)[:, None] * rest[:, :, 2]
+    return (curliness * CURL_SHARE * length * m)[:, None] * d
+
+
+def tube_arrays(rest_pos: np.ndarray, parents: np.ndarray, rest: np.ndarray, r_head: np.ndarray,
+                r_tail: np.ndarray, sides: int = 8, *, curliness: float = 0.0, bark: str = "none",
+                rings: int = 0, seed: int = 0) -> dict:
+    """Geometry of one closed tube per bone (see the module docstring).
+
+    ``rest_pos (N, 3)`` metres, ``rest (B, 3, 3)`` bone rest rotations (Y along the bone; rings of
+    straight tubes lie in the bones' X/Z planes), radii ``(B,)`` metres at head and tail (linear
+    taper). Each tube of a bone with a parent bone starts ``ext = r_head`` (at most half the parent's
+    length) before its head, straight along the bone, inside the parent's tube, so joints stay
+    closed when the tree bends; ``K`` rings are spread evenly from there to the tail.
+
+    Returns arrays: ``co (V, 3)``; ``loop_vert (L,)``; ``loop_start``, ``loop_total``, ``smooth (P,)``;
+    ``uv (L, 2)``; ``vert_bone (V,)``; per ring ``centre (B, K, 3)``, ``tangent (B, K, 3)`` (unit),
+    ``r0 (B, K)`` (radius before bark), ``tau (B, K)`` (position along the bone: 0 head, 1 tail,
+    < 0 in the extension), ``v (B, K)``; ``bark`` = :func:`bark_terms`; ``tile`` (metres per unit
+    of v). ``V = K·S·B``, ``P = ((K − 1)·S + 2)·B``, ``L = (4(K − 1) + 2)·S·B``; ring ``j`` of bone
+    ``b`` is vertices ``(b·K + j)·S … + S − 1``, vertex ``k`` at angle ``θ_k = 2πk/S`` from the ring's X."""
+    p = MeshParams(int(sides), float(curliness), bark, int(rings), int(seed))
+    check_params(p)
+    S, K = p.sides, p.ring_count()
+    edges = bn.bone_edges(parents)
+    parent_bone = bn.bone_parents(parents)
+    B = len(edges)
+    P0 = np.asarray(rest_pos, np.float64)
+    rest = np.asarray(rest, np.float64)
+    r_head = np.asarray(r_head, np.float64)
+    r_tail = np.asarray(r_tail, np.float64)
+    head, tail = P0[edges[:, 0]], P0[edges[:, 1]]
+    length = np.linalg.norm(tail - head, axis=1)
+    axis_x, axis_y, axis_z = rest[:, :, 0], rest[:, :, 1], rest[:, :, 2]
+    ext = np.where(parent_bone >= 0, np.minimum(r_head, 0.5 * length[np.maximum(parent_bone, 0)]), 0.0)
+
+    # centre line: rings evenly from τ0 = −ext/length to 1; the minimum-jerk bump on [0, 1] only
+    tau0 = -ext / np.maximum(length, 1e-12)
+    tau = tau0[:, None] + (1.0 - tau0)[:, None] * np.linspace(0.0, 1.0, K)[None]      # (B, K)
+    offset = curl_offsets(rest, length, p.curliness, p.seed)                            # (B, 3)
+    tc = np.clip(tau, 0.0, 1.0)
+    s = minimum_jerk(tc)
+    bump = 4.0 * s * (1.0 - s)
+    dbump = 4.0 * (1.0 - 2.0 * s) * 30.0 * tc ** 2 * (1.0 - tc) ** 2 * (tau > 0) * (tau < 1)
+    seg = tail - head
+    centre = head[:, None] + tau[..., None] * seg[:, None] + bump[..., None] * offset[:, None]
+    tangent = seg[:, None] + dbump[..., None] * offset[:, None]
+    tangent /= np.linalg.norm(tangent, axis=-1, keepdims=True)
+    # ring axes: the bone's X/Z swung (no twist) from the bone's Y onto the curve's tangent
+    if p.curliness > 0:
+        q = bn.swing(np.broadcast_to(axis_y[:, None], tangent.shape), tangent)           # (B, K, 4)
+        rx = bn.quat_rotate(q, np.broadcast_to(axis_x[:, None], tangent.shape))
+        rz = bn.quat_rotate(q, np.broadcast_to(axis_z[:, None], tangent.shape))
+    else:                                       # straight: exactly the rest axes (Blender's float32)
+        rx = np.broadcast_to(axis_x[:, None], tangent.shape)
+        rz = np.broadcast_to(axis_z[:, None], tangent.shape)
+
+    # arc length along the curved centre lines (ring to ring over [0, 1], ×1 for straight tubes)
+    if p.curliness > 0:
+        fine = np.linspace(0.0, 1.0, 33)
+        sf = minimum_jerk(fine)
+        pts = head[:, None] + fine[None, :, None] * seg[:, None] + (4 * sf * (1 - sf))[None, :, None] * offset[:, None]
+        curve_len = np.linalg.norm(np.diff(pts, axis=1), axis=-1).sum(axis=1)
+    else:
+        curve_len = length
+    arc = _arc_lengths(parents, edges, parent_bone, curve_len)
+    tile = 2 * math.pi * max(float(np.max(r_head)) if B else 0.0, 1e-6)
+    v = (arc[edges[:, 0]][:, None] + tau * curve_len[:, None]) / tile                    # (B, K)
+
+    # radius per ring (linear taper in τ from head to tail; the extension keeps r_head) and bark
+    w = np.clip(tau, 0.0, 1.0)
+    r0 = r_head[:, None] * (1.0 - w) + r_tail[:, None] * w                              # (B, K)
+    theta = 2 * math.pi * np.arange(S) / S
+    amp, freqs, phases, drift = bark_terms(p.bark, S, p.seed)
+    if len(amp):
+        ph = phases[None, None] + drift[None, None] * v[..., None]                       # (B, K, T)
+        wave = np.sum(amp * np.sin(freqs * theta[:, None, None, None] + ph[None]), axis=-1)   # (S, B, K)
+        radius = r0[..., None] * (1.0 + np.moveaxis(wave, 0, -1))                       # (B, K, S)
+    else:
+        radius = np.broadcast_to(r0[..., None], (B, K, S))
+    ring = np.cos(theta)[None, None, :, None] * rx[:, :, None] + np.sin(theta)[None, None, :, None] * rz[:, :, None]
+    co = centre[:, :, None] + radius[..., None] * ring                                   # (B, K, S, 3)
+
+    # faces: side quads ring j → j+1, then the head cap (ring 0) and the tail cap (ring K−1)
+    k = np.arange(S)
+    kn = (k + 1) % S
+    j = np.arange(K - 1)[:, None]
+    side = np.stack([j * S + k, (j + 1) * S + k, (j + 1) * S + kn, j * S + kn], axis=-1).reshape(-1)
+    head_cap = k                                                                         # normal −tangent
+    tail_cap = (K - 1) * S + k[::-1]                                                     # normal +tangent
+    per_bone = np.concatenate([side, head_cap, tail_cap])                                # ((4(K−1)+2)S,)
+    n_loops = len(per_bone)
+    loop_vert = (per_bone[None] + K * S * np.arange(B)[:, None]).ravel()
+    totals = np.concatenate([np.full((K - 1) * S, 4), [S, S]])
+    starts = np.concatenate([[0], np.cumsum(totals)[:-1]])
+    loop_start = (starts[None] + n_loops * np.arange(B)[:, None]).ravel()
+    loop_total = np.tile(totals, B)
+    smooth = np.tile(np.concatenate([np.ones((K - 1) * S, bool), [False, False]]), B)
+
+    u_side = np.tile(np.stack([k, k, k + 1, k + 1], axis=1).ravel() / S, K - 1)         # (4S(K−1),)
+    ring_of_loop = np.broadcast_to(j[:, :, None] + np.array([0, 1, 1, 0]), (K - 1, S, 4)).reshape(-1)
+    u_cap = 0.5 + np.cos(theta) / (2 * math.pi)
+    uv = np.empty((B, n_loops, 2))
+    ns = 4 * S * (K - 1)
+    uv[:, :ns, 0] = u_side
+    uv[:, :ns, 1] = v[:, ring_of_loop]
+    uv[:, ns:ns + S, 0] = u_cap
+    uv[:, ns:ns + S, 1] = v[:, :1] + (r0[:, :1] / tile) * np.sin(theta)[None]
+    uv[:, ns + S:, 0] = u_cap[::-1]
+    uv[:, ns + S:, 1] = v[:, -1:] + (r0[:, -1:] / tile) * np.sin(theta[::-1])[None]
+    return {"co": co.reshape(-1, 3), "loop_vert": loop_vert, "loop_start": loop_start,
+            "loop_total": loop_total, "smooth": smooth, "uv": uv.reshape(-1, 2),
+            "vert_bone": np.repeat(np.arange(B), K * S), "centre": centre, "tangent": tangent,
+            "r0": r0, "tau": tau, "v": v, "bark": (amp, freqs, phases, drift), "tile": tile,
+            "rings": K, "sides": S}
+
+
+def mesh_stats(g: dict) -> dict:
+    """``{"vertices", "faces", "triangles"}`` of :func:`tube_arrays` output (a quad is 2
+    triangles, an S-gon cap S − 2)."""
+    tris = int(np.sum(g["loop_total"] - 2))
+    return {"vertices": len(g["co"]), "faces": len(g["loop_start"]), "triangles": tris}
