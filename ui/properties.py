@@ -70,6 +70,18 @@ class TreeVideoSettings(bpy.types.PropertyGroup):
                                       description="Height of the reconstructed tree in the scene (metres)")
     build_mesh: bpy.props.BoolProperty(name="Branch Mesh", default=True,
                                        description="Build skinned bark tubes along the bones")
+    twig_depth: bpy.props.IntProperty(name="Twig Depth", default=2, min=0, max=6,
+                                      description="Generations of twigs grown from every branch tip by copying the "
+                                                  "tree's own forks (0: none); they ride on their branch's motion")
+    curliness: bpy.props.FloatProperty(name="Curliness", default=0.3, min=0.0, max=1.0, subtype="FACTOR",
+                                       description="Bend the branch tubes along minimum-jerk curves (0: straight; "
+                                                   "1: up to 12% of each bone's length)")
+    bark: bpy.props.EnumProperty(
+        name="Bark", default="rough",
+        items=[("none", "None", "Round tubes"),
+               ("smooth", "Smooth", "Bark relief up to 0.5% of the radius (beech, birch)"),
+               ("rough", "Rough", "Bark relief of 1-5% of the radius (oak, pine)")],
+        description="Relief of the bark around the branch tubes")
     collection_name: bpy.props.StringProperty(name="Collection", default="Tree from Video",
                                               description="Collection that holds the tree's armature and mesh")
     replace_existing: bpy.props.BoolProperty(name="Replace Existing", default=False,
