@@ -19,8 +19,9 @@ import numpy as np
 
 from ..core.errors import InputError
 
-DRAW = "draw a closed line around the whole tree with the Annotate tool"
-HOW = f"{DRAW} in the Movie Clip editor on frame 1"
+DRAW = ("draw a closed line around the whole tree in the Movie Clip editor (toolbar › Annotation › Draw, "
+        "or hold D and drag)")
+HOW = f"{DRAW} on frame 1"
 
 
 def _problem(short: str, message: str) -> InputError:
@@ -84,15 +85,23 @@ def annotation_polygon(clip, width: int, height: int) -> np.ndarray:
                        f"annotation layer '{layer.info}' of clip '{clip.name}' has nothing drawn on the clip's "
                        f"frame 1 (scene frame {first}); go to that frame and {DRAW}")
     frame = max(frames, key=lambda f: f.frame_number)
-    best, best_len, n_strokes = None, 0.0, 0
+    best, best_len, n_strokes, n_view = None, 0.0, 0, 0
     for stroke in frame.strokes:
         n_strokes += 1
         if len(stroke.points) < 3:
             continue
         px = _stroke_px(stroke, width, height)
+        if np.abs(px / (width, height) - 0.5).max() > 1.0:      # percent of the region: placed on the view
+            n_view += 1
+            continue
         length = float(np.linalg.norm(np.diff(px, axis=0), axis=1).sum())
         if best is None or length > best_len:
             best, best_len = px, length
+    if best is None and n_view:
+        raise _problem("Stroke stuck to the view, not the image",
+                       f"the annotation on clip '{clip.name}' was drawn with Stroke Placement 'View' (it does not "
+                       "follow the image); set Stroke Placement to 'Image' in the clip editor's toolbar "
+                       "(Annotation tab), erase the stroke and draw it again")
     if best is None:
         what = "no stroke" if n_strokes == 0 else f"{n_strokes} stroke(s), each with fewer than 3 points"
         raise _problem("No stroke of 3+ points on frame 1",
@@ -124,10 +133,14 @@ def status(video_path: str) -> tuple[bool, str]:
     return True, f"Stroke of {len(poly)} points on '{clip.name}'"
 
 
-def use_annotate_tool(context, area) -> bool:
-    """Make the Annotate tool active in the Movie Clip editor ``area`` (best effort)."""
-    try:
-        with context.temp_override(area=area, space_data=area.spaces.active):
-            return bpy.ops.wm.tool_set_by_id(name="builtin.annotate") == {"FINISHED"}
-    except (RuntimeError, TypeError, AttributeError):
-        return False
+def show_annotation_tools(area) -> None:
+    """Show the Movie Clip editor's toolbar on its Annotation tab (Draw, Line, Poly, Erase); the clip
+    editor has no Annotate tool in the tool system (4.3), its annotation tools live there."""
+    space = area.spaces.active
+    space.show_region_toolbar = True
+    tools = next((r for r in area.regions if r.type == "TOOLS"), None)
+    if tools is not None:
+        try:
+            tools.active_panel_category = "Annotation"
+        except (TypeError, AttributeError):      # the tab list exists only after the first redraw
+            pass

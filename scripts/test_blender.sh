@@ -52,6 +52,13 @@ grep -q "preview: {'FINISHED'}" "$OUT/clip.log" && grep -q "clip ready" "$OUT/cl
   || { tail -20 "$OUT/clip.log"; echo "the preview did not run in the GUI" >&2; exit 1; }
 echo "clip overlay screenshot: $(stat -c %s "$OUT/clip.png") bytes"
 
+echo "== Blender 4.3 GUI: outline from an annotation drawn over the clip, then Track & Preview"
+"$RB" gui-shot "$OUT/annotation.png" --size 1600x900 --wait 12 -- \
+  blender --factory-startup --python tests/gui/annotation_shot.py > "$OUT/annotation.log" 2>&1 \
+  || { tail -20 "$OUT/annotation.log"; echo "annotation screenshot failed or blank" >&2; exit 1; }
+grep -q "status after drawing: (True" "$OUT/annotation.log" && grep -q "preview: {'FINISHED'}" "$OUT/annotation.log" \
+  || { tail -20 "$OUT/annotation.log"; echo "the annotation outline did not work in the GUI" >&2; exit 1; }
+
 echo "== Blender 4.3 GUI: Reconstruct as a user starts it (INVOKE, modal), then cancelled"
 "$RB" gui-shot "$OUT/modal.png" --size 1200x800 --wait 25 -- \
   blender --factory-startup --python tests/gui/modal_run.py > "$OUT/modal.log" 2>&1 || true

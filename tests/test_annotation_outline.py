@@ -4,7 +4,8 @@ Python can't add annotation strokes (4.3 and 5.x), so the strokes come from
 ``tests/data/annotation_outline.blend``, drawn with the Annotate operator in the real Blender 4.3
 GUI by ``tests/gui/make_annotation_fixture.py`` (legacy Grease Pencil data, which Blender 5 converts
 to an Annotation on load). Layer "Note" (active): frame 1 — the tree's outline (outline.json) and a
-2-point tick; frame 30 — a small triangle. Layer "Short": frame 1 — a 2-point stroke.
+2-point tick; frame 30 — a small triangle. Layer "Short": frame 1 — a 2-point stroke. Layer "View":
+frame 1 — a triangle drawn with Stroke Placement "View" (percent of the region, not the image).
 """
 import json
 import os
@@ -91,31 +92,32 @@ def test_the_drawing_shown_on_the_clips_frame_1_is_used():
 
 
 @pytest.mark.parametrize("case", ["no clip", "no annotation", "no layer", "nothing on frame 1", "no stroke",
-                                  "short stroke"])
+                                  "short stroke", "view placement"])
 def test_missing_or_unusable_annotation_is_a_clear_error(case):
     if case == "no clip":
-        with pytest.raises(InputError, match="no Movie Clip of 'video.mp4'.*Open Clip.*Annotate tool"):
+        with pytest.raises(InputError, match="no Movie Clip of 'video.mp4'.*Open Clip.*Annotation › Draw"):
             annotation.video_annotation_polygon(VIDEO, W, H)
         return
-    if case == "short stroke":
+    if case in ("short stroke", "view placement"):
         clip = _fixture_clip()
         ann = annotation.clip_annotation(clip)
-        ann.layers.active_index = 1
-        assert ann.layers[1].info == "Short"
-        expect = "layer 'Short'.* 1 stroke\\(s\\), each with fewer than 3 points.*Annotate tool"
+        ann.layers.active_index = 1 if case == "short stroke" else 2
+        assert ann.layers[ann.layers.active_index].info == ("Short" if case == "short stroke" else "View")
+        expect = ("layer 'Short'.* 1 stroke\\(s\\), each with fewer than 3 points.*Annotation › Draw"
+                  if case == "short stroke" else "drawn with Stroke Placement 'View'.*set Stroke Placement to 'Image'")
     else:
         clip = bpy.data.movieclips.load(VIDEO)
-        expect = "clip 'video.mp4' has no annotation.*Annotate tool"
+        expect = "clip 'video.mp4' has no annotation.*Annotation › Draw"
         if case != "no annotation":
             ann = _new_annotation(clip)
             if case != "no layer":
                 layer = ann.layers.new("Outline")
                 if case == "nothing on frame 1":
                     layer.frames.new(5)
-                    expect = "nothing drawn on the clip's frame 1 \\(scene frame 1\\).*Annotate tool"
+                    expect = "nothing drawn on the clip's frame 1 \\(scene frame 1\\).*Annotation › Draw"
                 else:
                     layer.frames.new(1)
-                    expect = "has no stroke on the clip's frame 1.*Annotate tool"
+                    expect = "has no stroke on the clip's frame 1.*Annotation › Draw"
     with pytest.raises(InputError, match=expect):
         annotation.annotation_polygon(clip, W, H)
     assert annotation.status(VIDEO)[0] is False

@@ -9,7 +9,8 @@ the tests read this file.
 Contents (the clip is saved alone with ``bpy.data.libraries.write``, its path relative):
 layer "Note" (active): frame 1 — the tree's outline (sample_videos/broad/outline.json, closed, a
 point every ~2 px) and a 2-point tick in the sky; frame 30 — a small triangle.
-Layer "Short": frame 1 — one 2-point stroke.
+Layer "Short": frame 1 — one 2-point stroke. Layer "View": frame 1 — a triangle drawn with Stroke
+Placement "View" (stored in percent of the region instead of the image's 0..1).
 """
 import json
 import os
@@ -21,8 +22,6 @@ ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)
 VIDEO = os.path.join(ROOT, "sample_videos", "broad", "video.mp4")
 OUTLINE = os.path.join(ROOT, "sample_videos", "broad", "outline.json")
 OUT = os.path.join(ROOT, "tests", "data", "annotation_outline.blend")
-
-bpy.context.preferences.view.show_splash = False
 
 
 def _clip_area():
@@ -58,6 +57,7 @@ def _draw(poly_px, w, h):
 
 
 def setup():
+    bpy.context.preferences.view.show_splash = False
     area = max(bpy.context.window.screen.areas, key=lambda a: a.width * a.height)
     area.type = "CLIP_EDITOR"
     space = area.spaces.active
@@ -94,6 +94,12 @@ def draw():
     gp.layers.new("Short")
     gp.layers.active_index = len(gp.layers) - 1
     print("short:", _draw([(400, 40), (440, 60)], w, h), flush=True)
+    gp.layers.new("View")
+    gp.layers.active_index = len(gp.layers) - 1
+    ts = scene.tool_settings
+    ts.annotation_stroke_placement_view2d = "VIEW"         # stored in percent of the region, not the image
+    print("view-placed:", _draw(_dense([(300, 300), (400, 300), (350, 250)]), w, h), flush=True)
+    ts.annotation_stroke_placement_view2d = "IMAGE"
     gp.layers.active_index = 0
     for layer in gp.layers:
         for fr in layer.frames:
@@ -113,4 +119,5 @@ def draw():
     return None
 
 
-bpy.app.timers.register(setup, first_interval=1.0)
+if __name__ == "__main__":
+    bpy.app.timers.register(setup, first_interval=1.0)
