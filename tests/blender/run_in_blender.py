@@ -23,7 +23,8 @@ print(f"run_in_blender: Blender {bpy.app.version_string}, Python {sys.version.sp
 args = ["-q", "-p", "no:cacheprovider", "-o", "cache_dir=/tmp/tfv_pytest_cache",
         os.path.join(TESTS, "test_units.py"), os.path.join(TESTS, "test_register.py"), os.path.join(TESTS, "test_reconstruct_op.py"),
         os.path.join(TESTS, "test_sample_run.py"), os.path.join(TESTS, "test_scene.py"),
-        os.path.join(TESTS, "test_exports.py"), os.path.join(TESTS, "test_annotation_outline.py")]
+        os.path.join(TESTS, "test_exports.py"), os.path.join(TESTS, "test_annotation_outline.py"),
+        os.path.join(TESTS, "test_twigs.py"), os.path.join(TESTS, "test_branch_mesh.py")]
 code = int(pytest.main(args))
 if code == 5:
     code = 1
