@@ -247,7 +247,7 @@ def add_twigs(tree: Tree3D, params: TwigParams | None = None,
         child = tpl.start[t][item] + (np.arange(len(item)) - np.repeat(np.cumsum(k) - k, k))
         roll = rng.uniform(-ROLL_JITTER, ROLL_JITTER, len(f_node))[item]
         vec = _compose(f_dir[item], f_len[item], tpl.theta[child], tpl.phi[child] + roll, tpl.rho[child])
-        base = rest_of(f_node[item], rest, new_pos)
+        base = _rest_of(f_node[item], rest, new_pos)
         scale = _fit(base, vec, env, min_len)
         ok = scale > 0
         rejected += int((~ok).sum())
@@ -277,8 +277,8 @@ def add_twigs(tree: Tree3D, params: TwigParams | None = None,
                      "rejected": rejected, "shrunk": shrunk, "templates": int(tpl.n), "depth": int(p.depth),
                      "seed": int(p.seed), "lag_frames": int(p.lag_frames), "attenuation": float(p.attenuation)}
     if added == 0:
-        return Tree3D(tree.parents.copy(), tree.nodes3d.copy(), tree.radius.copy(), tree.level.copy(),
-                      tree.fps, tree.name, meta)
+        return _carry(tree, Tree3D(tree.parents.copy(), tree.nodes3d.copy(), tree.radius.copy(),
+                                   tree.level.copy(), tree.fps, tree.name, meta))
     t_parent = np.concatenate(new_parent)
     t_pos = np.concatenate(new_pos)
     t_root = np.concatenate(new_root)
@@ -286,13 +286,21 @@ def add_twigs(tree: Tree3D, params: TwigParams | None = None,
     out_nodes[:, :N] = nodes
     out_nodes[:, N:] = animate(nodes, parents, t_root, t_pos, p.lag_frames, p.attenuation)
     report(progress, "twigs", 1.0)
-    return Tree3D(np.concatenate([parents, t_parent]).astype(np.int32), out_nodes.astype(np.float32),
-                  np.concatenate([np.asarray(tree.radius, np.float64), np.concatenate(new_rad)]).astype(np.float32),
-                  np.concatenate([np.asarray(tree.level, np.int64), np.concatenate(new_lvl)]).astype(np.int32),
-                  tree.fps, tree.name, meta)
+    return _carry(tree, Tree3D(
+        np.concatenate([parents, t_parent]).astype(np.int32), out_nodes.astype(np.float32),
+        np.concatenate([np.asarray(tree.radius, np.float64), np.concatenate(new_rad)]).astype(np.float32),
+        np.concatenate([np.asarray(tree.level, np.int64), np.concatenate(new_lvl)]).astype(np.int32),
+        tree.fps, tree.name, meta))
 
 
-def rest_of(idx: np.ndarray, rest: np.ndarray, new_pos: list) -> np.ndarray:
+def _carry(src: Tree3D, out: Tree3D) -> Tree3D:
+    """Keep what else ``src`` carries (leaf clusters sit on original nodes, whose indices stay)."""
+    if getattr(src, "leaves", None) is not None:
+        out.leaves = src.leaves
+    return out
+
+
+def _rest_of(idx: np.ndarray, rest: np.ndarray, new_pos: list) -> np.ndarray:
     """Rest positions ``(M, 3)`` of nodes ``idx`` among the original ``rest (N, 3)`` and the twig
     positions appended so far (``new_pos``: list of ``(m, 3)`` arrays in node order after N)."""
     allpos = np.concatenate([rest] + new_pos) if new_pos else rest

@@ -1,7 +1,6 @@
 """The branch mesh (core/branch_mesh.py) by hand — straight tubes, minimum-jerk curliness, seamless
 bark rings, UVs continuous along branches — and as built in Blender (vertex count, weights, closed
 surface, timing of a ~400-bone tree)."""
-import math
 import time
 
 import bpy
@@ -275,3 +274,16 @@ def test_timing_and_triangles_of_a_400_bone_tree():
     for kw, stats, dt, mesh_t, total in rows:
         print(f"  {kw or 'straight'}: {stats['vertices']} vertices, {stats['triangles']} triangles; "
               f"numpy {dt * 1000:.0f} ms, Blender mesh {mesh_t * 1000:.0f} ms, whole build {total:.2f} s")
+
+
+@pytest.mark.parametrize("kind", ["none", "smooth", "rough"])
+def test_bark_material_is_procedural_and_uv_mapped(kind):
+    mat = scene_build.bark_material("Bark", kind)
+    nodes = {n.type for n in mat.node_tree.nodes}
+    assert {"TEX_NOISE", "TEX_VORONOI", "BUMP", "BSDF_PRINCIPLED", "OUTPUT_MATERIAL"} <= nodes
+    assert ("TEX_WAVE" in nodes) == (kind != "none")                  # furrows along the branch
+    links = {(l.from_node.type, l.from_socket.name, l.to_node.type) for l in mat.node_tree.links}
+    assert ("TEX_COORD", "UV", "MAPPING") in links                    # follows the mesh's UVs
+    bump = next(n for n in mat.node_tree.nodes if n.type == "BUMP")
+    assert bump.inputs["Height"].is_linked
+    assert bump.inputs["Strength"].default_value == pytest.approx(scene_build.BARK_LOOK[kind][0])

@@ -205,6 +205,53 @@ def _root_tip(out, N):
     return root[N:]
 
 
+# ----------------------------------------------------------------------------- pipeline and batch
+
+def test_pipeline_adds_twigs_after_the_motion_inside_the_envelope():
+    """The reconstruction of 30 frames of the committed sample with and without twigs: the same
+    reconstructed nodes, twigs appended inside the solver's envelope, the mesh settings in meta."""
+    import os
+
+    from tree_from_video.core import pipeline
+    from trees import ROOT
+    folder = os.path.join(ROOT, "sample_videos", "broad")
+    s = pipeline.Settings(frames="0:30")
+    s.leaves = None
+    res = pipeline.run(os.path.join(folder, "video.mp4"), os.path.join(folder, "outline.json"), s)
+    bare = pipeline.build_3d(res, s)
+    s.twigs = tw.TwigParams(depth=2, seed=1)
+    s.curliness, s.bark = 0.4, "rough"
+    twiggy = pipeline.build_3d(res, s)
+    N = bare.n_nodes
+    assert "twigs" not in bare.meta and bare.meta["mesh"] == {"curliness": 0.0, "bark": "none", "seed": 0}
+    assert twiggy.meta["mesh"] == {"curliness": 0.4, "bark": "rough", "seed": 1}
+    np.testing.assert_array_equal(twiggy.nodes3d[:, :N], bare.nodes3d)
+    added = twiggy.meta["twigs"]["nodes_added"]
+    assert added == twiggy.n_nodes - N > N // 4
+    env = envelope_from_meta(twiggy.meta)
+    assert env.contains(twiggy.nodes3d[0, N:].astype(float), tol=1e-6).all()
+    bn.check_positions(twiggy.parents, twiggy.nodes3d)
+    with pytest.raises(InputError, match="twig depth"):
+        s.twigs.depth = 9
+        pipeline.check_settings(s)
+    print(f"\nbroad sample, 30 frames: {N} reconstructed nodes + {added} twig nodes "
+          f"({twiggy.meta['twigs']['per_generation']}, {twiggy.meta['twigs']['rejected']} dropped at the envelope)")
+
+
+def test_batch_flags_reach_the_settings(tmp_path):
+    import importlib
+    batch = importlib.import_module("tree_from_video.batch")
+    args = batch.build_parser().parse_args(["v.mp4", "--outline", "o.json", "--out", "x", "--twigs", "2",
+                                            "--curliness", "0.5", "--bark", "smooth"])
+    assert (args.twigs, args.curliness, args.bark) == (2, 0.5, "smooth")
+    defaults = batch.build_parser().parse_args(["v.mp4", "--outline", "o.json", "--out", "x"])
+    assert (defaults.twigs, defaults.curliness, defaults.bark) == (0, 0.0, "none")   # today's output
+    for bad in (["--twigs", "9"], ["--curliness", "2"]):
+        out = tmp_path / "out"
+        assert batch.main(["missing.mp4", "--outline", "o.json", "--out", str(out), *bad]) == 2
+        assert not out.exists()
+
+
 # ----------------------------------------------------------------------------- exports with twigs
 
 @pytest.fixture
