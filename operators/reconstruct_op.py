@@ -275,7 +275,7 @@ class TREE_OT_open_clip(bpy.types.Operator):
             space.clip = clip
             if context.scene.tree_video.outline_source == "ANNOTATION":
                 space.mode = "TRACKING"
-                annotation.use_annotate_tool(context, area)
+                annotation.show_annotation_tools(area)
             else:
                 space.mode = "MASK"
                 if space.mask is None:

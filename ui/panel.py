@@ -90,7 +90,7 @@ class TREE_PT_outline(_TreePanel, bpy.types.Panel):
     def draw(self, context):
         props = context.scene.tree_video
         col = self.column()
-        col.row().prop(props, "outline_source", expand=True)
+        col.prop(props, "outline_source")
         if props.outline_source == "FILE":
             col.prop(props, "outline_path")
         elif props.outline_source == "AUTO":
@@ -99,8 +99,9 @@ class TREE_PT_outline(_TreePanel, bpy.types.Panel):
             from ..operators import annotation
             col.operator("tree_video.open_clip", icon="TRACKER")
             hint = col.column(align=True)
-            hint.label(text="Annotate tool (clip toolbar): draw a", icon="GREASEPENCIL")
-            hint.label(text="closed line around the tree on frame 1", icon="BLANK1")
+            hint.label(text="Draw around the tree on frame 1:", icon="GREASEPENCIL")
+            hint.label(text="clip toolbar › Annotation › Draw", icon="BLANK1")
+            hint.label(text="or hold D and drag", icon="BLANK1")
             ok, text = annotation.status(props.video_path)
             col.label(text=text, icon="CHECKMARK" if ok else "ERROR")
         else:
