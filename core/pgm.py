@@ -5,10 +5,16 @@ Features of a reconstructed :class:`~.tree3d.Tree3D`:
 * **Shape, per bifurcation** (apex ``i`` with two children; local root ``j`` = the previous
   branch point or the trunk base up the chain; local leaves ``k``, ``l`` = the next branch point or
   tip down each child's chain). In the picture plane (x, z of frame 0 — the plane the video saw
-  and the one a new tree grows in) the three angles around the apex, counter-clockwise from the
-  direction back to the local root, ``θ1`` (back → first child), ``θ2`` (first → second child),
-  ``θ3`` (second child → back), sum to 2π; the feature is ``⟨θ1:θ2:θ3⟩ / 2π`` (sums to 1). The
-  branch lengths (chords, metres) ``⟨L1:L2:L3⟩ = ⟨|ij|:|ik|:|il|⟩ / Σ`` in the same child order.
+  and the one a new tree grows in) the three angles around the apex sum to 2π. They are taken
+  in a canonical order: from the direction back to the local root, turning toward the
+  *continuing* child first (the one that deviates least from the parent branch), then to the
+  side child, then back: ``θ1`` (back → continuation), ``θ2`` (continuation → side), ``θ3``
+  (side → back); the turning sense is counter-clockwise or, for a mirrored bifurcation,
+  clockwise (``mirrored``; the model keeps the share of mirrored ones). The feature is
+  ``⟨θ1:θ2:θ3⟩ / 2π`` (sums to 1); the branch lengths (chords, metres)
+  ``⟨L1:L2:L3⟩ = ⟨|j i| : |i cont| : |i side|⟩ / Σ`` in the same order. (A fixed
+  counter-clockwise order makes the data bimodal — continuation on the left or on the right —
+  which one Dirichlet cannot hold; generated limbs then lose their leader and curl.)
 * **Motion, per node and rotation axis**: ``ω_a(t)`` is the node's rotation relative to its
   parent bone (rotation vector, radians, world axes a = x, y, z; from
   :func:`.bones.world_rotations`). ``X_k = rfft(ω_a − mean)``; keep bins ``k = 1..K`` (the
@@ -272,8 +278,9 @@ def anchor_links(parents: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 @dataclass
 class BifurcationFeatures:
     """Per bifurcation ``b``: ``apex (B,)``, ``root (B,)`` local root node, ``leaves (B, 2)``
-    local leaf nodes in counter-clockwise order; ``angles (B, 3)`` ⟨θ1:θ2:θ3⟩ and ``lengths
-    (B, 3)`` ⟨L1:L2:L3⟩, each row summing to 1; ``chord (B, 3)`` metres ``(L1, L2, L3)``."""
+    local leaf nodes (continuation, side); ``angles (B, 3)`` ⟨θ1:θ2:θ3⟩ and ``lengths (B, 3)``
+    ⟨L1:L2:L3⟩, each row summing to 1; ``chord (B, 3)`` metres ``(L1, L2, L3)``; ``mirrored
+    (B,)`` bool, True where the canonical turning sense is clockwise."""
 
     apex: np.ndarray
     root: np.ndarray
@@ -281,6 +288,7 @@ class BifurcationFeatures:
     angles: np.ndarray
     lengths: np.ndarray
     chord: np.ndarray
+    mirrored: np.ndarray
 
 
 def ccw_angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -289,12 +297,29 @@ def ccw_angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.mod(ang, 2 * np.pi)
 
 
+def canonical_angles(back: np.ndarray, c1: np.ndarray, c2: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Canonical ``θ (B, 3)`` radians (sum 2π), ``cont_first (B,)`` bool (True: ``c1`` is the
+    continuation) and ``mirrored (B,)`` bool, for 2D directions ``back``, ``c1``, ``c2 (B, 2)``.
+
+    With ``a1 = ccw(back, c1)`` and ``a2 = ccw(back, c2)``, the continuation is the child whose
+    ccw angle is nearer π. Counter-clockwise from ``back`` the children come in the order
+    (min, max) of (a1, a2) with gaps ``(min, max − min, 2π − max)``; if the continuation is the
+    first of them the sense is counter-clockwise, else clockwise and the gaps are read backwards:
+    ``(2π − max, max − min, min)``."""
+    a1, a2 = ccw_angle(back, c1), ccw_angle(back, c2)
+    cont_first = np.abs(a1 - np.pi) <= np.abs(a2 - np.pi)
+    lo, hi = np.minimum(a1, a2), np.maximum(a1, a2)
+    gaps = np.stack([lo, hi - lo, 2 * np.pi - hi], axis=1)
+    cont_angle = np.where(cont_first, a1, a2)
+    mirrored = cont_angle > lo + 1e-12        # the continuation is the second counter-clockwise
+    theta = np.where(mirrored[:, None], gaps[:, ::-1], gaps)
+    return theta, cont_first, mirrored
+
+
 def bifurcation_features(parents: np.ndarray, pos: np.ndarray) -> BifurcationFeatures:
     """Shape features of every node with exactly two children (module docstring).
 
-    ``pos (N, 3)`` (x, y, z; only x and z are used) or ``(N, 2)`` (x, z), metres. The two
-    children are ordered counter-clockwise from the back direction ``x_j − x_i``, so
-    ``θ1 = ccw(back, k)``, ``θ2 = ccw(k, l)``, ``θ3 = 2π − θ1 − θ2``."""
+    ``pos (N, 3)`` (x, y, z; only x and z are used) or ``(N, 2)`` (x, z), metres."""
     from .skeleton2d import children_lists
     parents = np.asarray(parents)
     pos = np.asarray(pos, np.float64)
@@ -304,22 +329,17 @@ def bifurcation_features(parents: np.ndarray, pos: np.ndarray) -> BifurcationFea
     apex = np.array([n for n in range(len(parents)) if len(ch[n]) == 2 and up[n] >= 0], int)
     if len(apex) == 0:
         z = np.zeros((0, 3))
-        return BifurcationFeatures(apex, apex.copy(), np.zeros((0, 2), int), z, z.copy(), z.copy())
+        return BifurcationFeatures(apex, apex.copy(), np.zeros((0, 2), int), z, z.copy(), z.copy(),
+                                   np.zeros(0, bool))
     root = up[apex]
     kids = np.array([[down[ch[n][0]], down[ch[n][1]]] for n in apex])
     back = p2[root] - p2[apex]
-    ck = p2[kids[:, 0]] - p2[apex]
-    cl = p2[kids[:, 1]] - p2[apex]
-    ak = ccw_angle(back, ck)
-    al = ccw_angle(back, cl)
-    swap = al < ak
-    kids[swap] = kids[swap][:, ::-1]
-    first, second = np.minimum(ak, al), np.maximum(ak, al)
-    theta = np.stack([first, second - first, 2 * np.pi - second], axis=1)
+    theta, cont_first, mirrored = canonical_angles(back, p2[kids[:, 0]] - p2[apex], p2[kids[:, 1]] - p2[apex])
+    kids = np.where(cont_first[:, None], kids, kids[:, ::-1])
     chord = np.stack([np.linalg.norm(back, axis=1), np.linalg.norm(p2[kids[:, 0]] - p2[apex], axis=1),
                       np.linalg.norm(p2[kids[:, 1]] - p2[apex], axis=1)], axis=1)
     lengths = chord / np.maximum(chord.sum(axis=1, keepdims=True), 1e-12)
-    return BifurcationFeatures(apex, root, kids, theta / (2 * np.pi), lengths, chord)
+    return BifurcationFeatures(apex, root, kids, theta / (2 * np.pi), lengths, chord, mirrored)
 
 
 def node_rotations(parents: np.ndarray, nodes3d: np.ndarray) -> np.ndarray:
@@ -480,7 +500,11 @@ class SpeciesModel:
     :class:`AxisMotion` per axis x, y, z; ``trunk_frac``: trunk (base → first bifurcation) as a
     share of the height; ``segment_frac``: median bone length as a share of the height (how finely
     branches are subdivided); ``segments_per_branch`` median; ``min_branch_frac`` 5th-percentile
-    branch chord / height (growth stops below it); ``n_bifurcations`` in the source;
+    branch chord / height (growth stops below it); ``branch_frac`` median branch chord / height
+    (the scale of the first branches above the trunk); ``n_bifurcations`` in the source;
+    ``orientation_deg = (mean, std)`` of the branches' angle from the vertical in the picture
+    plane (branch chords above the trunk; growth uses it as a tropism term); ``mirror_p`` share
+    of clockwise (mirrored) bifurcations;
     ``source_height_m``; ``fps`` and ``n_frames`` of the source; ``conifer``; ``mu_deg`` mean
     branching angle of the source lift; ``fallbacks`` notes from degenerate fits."""
 
@@ -492,7 +516,10 @@ class SpeciesModel:
     segment_frac: float
     segments_per_branch: float
     min_branch_frac: float
+    branch_frac: float
     n_bifurcations: int
+    orientation_deg: tuple
+    mirror_p: float
     source_height_m: float
     fps: float
     n_frames: int
@@ -513,6 +540,9 @@ class SpeciesModel:
                       "segment_frac": round(float(self.segment_frac), 5),
                       "segments_per_branch": round(float(self.segments_per_branch), 3),
                       "min_branch_frac": round(float(self.min_branch_frac), 5),
+                      "branch_frac": round(float(self.branch_frac), 5),
+                      "orientation_deg": [round(float(x), 3) for x in self.orientation_deg],
+                      "mirror_p": round(float(self.mirror_p), 4),
                       "n_bifurcations": int(self.n_bifurcations), "mu_deg": round(float(self.mu_deg), 3)},
             "motion": {AXES[a]: {"freqs_hz": arr(m.freqs_hz, 5), "energy_alpha": arr(m.energy),
                                  "real_alpha": arr(m.real), "imag_alpha": arr(m.imag),
@@ -557,15 +587,36 @@ class SpeciesModel:
             model = cls(str(d.get("name", "species")), alpha(sh["angle_alpha"], 3), alpha(sh["length_alpha"], 3),
                         motion, float(sh["trunk_frac"]), float(sh["segment_frac"]),
                         float(sh["segments_per_branch"]), float(sh["min_branch_frac"]),
-                        int(sh["n_bifurcations"]), float(src["height_m"]), float(src["fps"]),
+                        float(sh["branch_frac"]), int(sh["n_bifurcations"]),
+                        _orientation(sh["orientation_deg"]), float(np.clip(float(sh["mirror_p"]), 0.0, 1.0)), float(src["height_m"]), float(src["fps"]),
                         int(src["n_frames"]), bool(d.get("conifer", False)), float(sh.get("mu_deg", 38.0)),
                         ver, list(d.get("fallbacks", [])))
         except (KeyError, TypeError, ValueError) as exc:
             raise InputError(f"{where} is incomplete or damaged ({exc.__class__.__name__}: {exc}); "
                              "fit the species again or pick another file") from None
-        if not (0 < model.trunk_frac < 1 and 0 < model.segment_frac < 1 and model.fps > 0):
+        if not (0 < model.trunk_frac < 1 and 0 < model.segment_frac < 1 and 0 < model.branch_frac < 1
+                and 0 < model.min_branch_frac < 1 and model.fps > 0):
             raise InputError(f"{where} has out-of-range shape numbers; fit the species again")
         return model
+
+
+def _orientation(x) -> tuple[float, float]:
+    o = tuple(float(v) for v in x)
+    if len(o) != 2 or not all(math.isfinite(v) for v in o) or o[1] <= 0:
+        raise ValueError("orientation_deg must be [mean, std > 0] degrees")
+    return o
+
+
+def branch_orientations(parents: np.ndarray, pos: np.ndarray) -> np.ndarray:
+    """``(M,)`` degrees: angle from the vertical (x, z plane) of every branch chord (anchor →
+    next anchor or tip) that does not start at the root (the trunk is excluded)."""
+    parents = np.asarray(parents)
+    p2 = np.asarray(pos, np.float64)[:, [0, 2]] if pos.shape[1] == 3 else np.asarray(pos, np.float64)
+    up, down = anchor_links(parents)
+    nodes = np.flatnonzero((down == np.arange(len(parents))) & (parents >= 0) & (up >= 0))
+    nodes = nodes[parents[up[nodes]] >= 0]
+    v = p2[nodes] - p2[up[nodes]]
+    return np.degrees(np.abs(np.arctan2(v[:, 0], v[:, 1])))
 
 
 def _fit_log_rms(rms: np.ndarray, rho: np.ndarray) -> tuple[float, float, float]:
@@ -595,6 +646,13 @@ def fit_axis_motion(sf: SpectralFeatures) -> AxisMotion:
     notes = [f"{n}: {f.fallback}" for n, f in (("energy", fe), ("real", fr), ("imag", fi)) if f.fallback]
     return AxisMotion(fe.alpha, fr.alpha, fi.alpha, sf.freqs_hz, _fit_log_rms(sf.rms, sf.rho), sf.phase_spread,
                       "; ".join(notes) or None)
+
+
+def _orientation_stats(g: np.ndarray) -> tuple[float, float]:
+    """(mean, std) degrees, std at least 10°; (40, 30) with fewer than 3 branches."""
+    if len(g) < 3:
+        return (40.0, 30.0)
+    return (float(g.mean()), float(max(g.std(), 10.0)))
 
 
 def fit_species(tree, name: str, keep: float = KEEP_FRACTION) -> SpeciesModel:
@@ -641,7 +699,10 @@ def fit_species(tree, name: str, keep: float = KEEP_FRACTION) -> SpeciesModel:
         segment_frac=float(np.clip(np.median(bone) / height, 0.005, 0.5)),
         segments_per_branch=float(np.median(seg_per_branch)) if seg_per_branch else 1.0,
         min_branch_frac=float(np.clip(np.percentile(feats.chord[:, 1:], 5) / height, 0.002, 0.3)),
-        n_bifurcations=int(len(feats.apex)), source_height_m=height, fps=float(tree.fps),
+        branch_frac=float(np.clip(np.median(feats.chord[:, 1:]) / height, 0.005, 0.5)),
+        n_bifurcations=int(len(feats.apex)),
+        orientation_deg=_orientation_stats(branch_orientations(parents, nodes[0])),
+        mirror_p=float(np.mean(feats.mirrored)), source_height_m=height, fps=float(tree.fps),
         n_frames=int(nodes.shape[0]), conifer=bool(tree.meta.get("conifer", False)),
         mu_deg=float(tree.meta.get("mu_deg", 38.0)), fallbacks=fallbacks)
 

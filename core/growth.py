@@ -1,0 +1,375 @@
+"""Grow a new tree from a species model inside an envelope Ω' (paper §5.3).
+
+1. **2D growth** (x, z metres, in Ω'). A trunk goes straight up from the origin to the first
+   bifurcation (``trunk_frac`` of the height, at least to where Ω' widens). Then, until the node
+   budget is spent, no growing tip is left, or Ω' is filled: pick a random growing tip ``i``
+   (its branch comes from the anchor ``j``, length ``L1``), sample ``⟨θ1:θ2:θ3⟩`` and
+   ``⟨L1:L2:L3⟩`` from the model's Dirichlets and a turning sense ``s = ±1`` (clockwise with
+   the example's share ``mirror_p``), so the continuing child leaves ``i`` at ``β + s·2πθ1`` and
+   the side child at ``β + s·2π(θ1 + θ2)`` (β the direction back to ``j``; see
+   :func:`.pgm.canonical_angles`) with lengths ``L1·L2/L1`` and ``L1·L3/L1``. The growing direction is a 1-D search over a rotation
+   φ of the pair about the view axis (L candidates in ±``max_turn``, keeping every angle ≥ 10°),
+   maximizing, as in the lift (Eq. 2–6 in 2D),
+
+       p(φ) ∝ exp(−φ² / 2σ²) · E(φ) / Σ_l E(φ_l) · [both branches inside Ω']
+       E(φ)  = Σ_k max(d_k − min(d_k, dist(ω_k, new branches(φ))), 0)     (Eq. 5–6)
+
+   with ``ω_k`` ≈250 attractors spread over Ω' and ``d_k`` their distance to the tree so far.
+   The angle term's centre is the sampled bifurcation (φ = 0): the angle between the new pair and
+   its parent branch should look like the example's. Where all ``E`` are 0 the angle term decides.
+   One factor the paper does not have, ``Π_c exp(−(γ_c − γ̄)² / 2σ_γ²)`` with ``γ_c`` each new
+   branch's angle from the vertical and (γ̄, σ_γ) the example's (``orientation_deg``): the
+   features are rotation invariant, so without it every generation turns ±35° at random and
+   limbs curl into hooks and loops (measured: it is what made generated crowns look like trees).
+   If no candidate fits, the pair is shrunk (×0.75, then ×0.5 and ×0.35 with twice the turning
+   range); if none still fits the tip stops. Children are at most 4× the example's median branch.
+   Branches shorter than the example's 5th-percentile branch stop growing.
+2. Each branch is split into bones of about the example's bone length (slightly bent by a
+   minimum-jerk bump, :func:`.details.curly_branch`, where that stays inside Ω').
+3. **Lift** with the reconstruction's Bayesian push (:func:`.lift3d.lift`) on a raster of Ω'.
+4. **Motion** from sampled spectra (:mod:`.sway`), scaled by wind × audio (:mod:`.wind`).
+
+Deterministic per seed: the same seed and parameters give the same tree.
+"""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+
+import numpy as np
+
+from .envelopes import Region2D, envelope_meta, envelope_polygon, region_of
+from .errors import InputError
+from .lift3d import Envelope, LiftParams, lift
+from .outline import Outline, polygon_to_mask
+from .pgm import SpeciesModel
+from .progress import ProgressFn, report, sub_progress
+from .skeleton2d import Skeleton2D, branching_level
+from .sway import forward_kinematics, sample_rotations
+from .tree3d import Tree3D, pipe_radii
+from .wind import audio_envelope, gain_curve
+
+MIN_ANGLE = np.radians(10.0)
+RASTER_HEIGHT_PX = 400.0         # the lift runs on a raster of Ω' this many pixels tall
+
+
+@dataclass
+class GrowParams:
+    """Controls of :func:`grow_tree`.
+
+    ``seed``; ``height_m`` scales the envelope to this height (None: keep it); ``node_budget``
+    total nodes (bones + 1); ``n_frames``, ``fps`` (None: the model's); ``wind`` amplitude factor;
+    ``time_offset_s`` shifts the sway in time (forests); ``tree_phase (3,)`` radians per axis
+    (None: random from the seed); ``candidates`` growth directions per bifurcation,
+    ``max_turn_deg`` their range, ``angle_sigma_deg`` σ of the angle term; ``attractors`` on Ω';
+    ``fill_tol`` stop when the mean attractor distance is below this share of the height;
+    ``length_reversion`` κ, pull of each new pair's scale toward the example's median branch;
+    ``tropism`` weigh growth directions by the example's branch orientations;
+    ``segments`` bones per branch (None: from the model's bone length); ``bend`` lateral bump of a
+    branch (share of its length); ``lift_candidates`` / ``lift_attractors`` of the push;
+    ``tip_radius`` share of the height; ``pipe_exponent``; ``leaf_density`` passed on in
+    ``meta`` for the leaf builder; ``conifer`` (None: the model's); ``name``."""
+
+    seed: int = 0
+    height_m: float | None = None
+    node_budget: int = 200
+    n_frames: int = 250
+    fps: float | None = None
+    wind: float = 1.0
+    time_offset_s: float = 0.0
+    tree_phase: tuple | None = None
+    candidates: int = 33
+    max_turn_deg: float = 45.0
+    angle_sigma_deg: float = 15.0
+    attractors: int = 250
+    fill_tol: float = 0.01
+    length_reversion: float = 0.5
+    tropism: bool = True
+    segments: int | None = None
+    bend: float = 0.04
+    lift_candidates: int = 16
+    lift_attractors: int = 128
+    tip_radius: float = 0.0025
+    pipe_exponent: float = 2.0
+    leaf_density: float = 1.0
+    conifer: bool | None = None
+    name: str | None = None
+
+
+@dataclass
+class Grown2D:
+    """The 2D tree: ``parents (N,)``, ``pos (N, 2)`` (x, z) metres; ``anchor (N,)`` bool (branch
+    points, tips and the root — the nodes before subdivision); ``stopped`` why growth ended."""
+
+    parents: np.ndarray
+    pos: np.ndarray
+    anchor: np.ndarray
+    stopped: str
+
+
+def check_params(p: GrowParams) -> None:
+    if int(p.node_budget) < 4:
+        raise InputError(f"node budget {p.node_budget} is too small; give at least 4 (e.g. 200)")
+    if int(p.n_frames) < 1:
+        raise InputError(f"frame count {p.n_frames} must be at least 1")
+    if p.fps is not None and not p.fps > 0:
+        raise InputError(f"frame rate {p.fps} is not positive")
+    if p.height_m is not None and not (np.isfinite(p.height_m) and p.height_m > 0):
+        raise InputError(f"tree height {p.height_m} m is not positive; give e.g. 8")
+    if not (np.isfinite(p.wind) and p.wind >= 0):
+        raise InputError(f"wind strength {p.wind} must be ≥ 0 (1 = as in the example)")
+
+
+def scale_envelope(env: Envelope, factor: float) -> Envelope:
+    """``env`` scaled about the origin by ``factor`` (same type, polygon scaled too)."""
+    import copy
+    out = copy.copy(env)
+    out.z, out.centre, out.radius = env.z * factor, env.centre * factor, env.radius * factor
+    if getattr(env, "polygon", None) is not None:
+        out.polygon = np.asarray(env.polygon) * factor
+    return out
+
+
+def _seg_dist(pts: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Distance ``(L, K)`` from points ``pts (K, 2)`` to segments ``a (L, 2)`` → ``b (L, 2)``."""
+    ab = b - a                                                       # (L, 2)
+    ap = pts[None] - a[:, None]                                      # (L, K, 2)
+    t = np.clip(np.einsum("lkd,ld->lk", ap, ab) / np.maximum(np.sum(ab * ab, 1), 1e-18)[:, None], 0, 1)
+    d = ap - t[..., None] * ab[:, None]
+    return np.sqrt(np.sum(d * d, -1))
+
+
+def _stem_top(region: Region2D) -> float:
+    """Lowest height where Ω' is at least 30 % of its widest."""
+    H = region.height()
+    z = np.linspace(0.0, H, 200)
+    w = region.width_at(z)
+    wide = np.flatnonzero(w >= 0.3 * w.max())
+    return float(z[wide[0]]) if len(wide) else 0.0
+
+
+def grow_2d(model: SpeciesModel, region: Region2D, p: GrowParams, rng: np.random.Generator,
+            progress: ProgressFn | None = None) -> Grown2D:
+    """Step 1–2 of the module docstring; metres."""
+    H = region.height()
+    budget = int(p.node_budget)
+    seg_len = max(model.segment_frac * H, 1e-6)
+    min_len = max(model.min_branch_frac * H, 1e-3 * H)
+    sigma = np.radians(p.angle_sigma_deg)
+    o_mean, o_std = model.orientation_deg
+    turns = np.radians(p.max_turn_deg) * np.linspace(-1.0, 1.0, max(int(p.candidates), 1) | 1)
+    along = np.array([0.25, 0.5, 0.75, 1.0])
+
+    def n_seg(length: float) -> int:
+        if p.segments is not None:
+            return max(1, int(p.segments))
+        return int(np.clip(round(length / seg_len), 1, 8))
+
+    # trunk: straight up to the first bifurcation, at least where Ω' widens
+    zt = min(max(model.trunk_frac * H, _stem_top(region) + 0.02 * H), 0.6 * H)
+    while zt > 0.05 * H and not region.contains(np.array([[0.0, zt]]))[0]:
+        zt *= 0.9
+    if not region.contains(np.array([[0.0, 0.5 * zt]]))[0]:
+        raise InputError("the envelope does not contain the trunk base; the shape must reach down to its "
+                         "lowest point (the origin) with some width")
+    pos = [np.zeros(2), np.array([0.0, zt])]
+    par = [-1, 0]
+    total = 1 + n_seg(zt)
+    attr = region.attractors(p.attractors)
+    d_cur = _seg_dist(attr, pos[0][None], pos[1][None])[0]
+    live = [1]
+    stopped = "no growing tip left"
+    steps = 0
+    while live:
+        if total >= budget - 1:
+            stopped = "node budget reached"
+            break
+        if d_cur.mean() < p.fill_tol * H:
+            stopped = "envelope filled"
+            break
+        steps += 1
+        if steps % 8 == 0:
+            report(progress, "growing", total / budget)
+        k = int(rng.integers(len(live)))
+        i = live[k]
+        j = par[i]
+        back = pos[j] - pos[i]
+        L1 = float(np.linalg.norm(back))
+        th = 2 * np.pi * _dirichlet(rng, model.angles)
+        ln = _dirichlet(rng, model.lengths)
+        # lengths cascade from the parent branch (L_k = L1 · l_k / l_1); the trunk is not a
+        # branch of that cascade, so the first pair scales from the example's median branch
+        # plus a pull toward the example's typical branch (log L_eff = (1−κ) log L1 + κ log L_typ):
+        # the ratios alone are a multiplicative random walk whose lengths drift without bound
+        typ = model.branch_frac * H
+        scale = typ if j == 0 else float(np.exp((1 - p.length_reversion) * np.log(L1)
+                                                 + p.length_reversion * np.log(typ)))
+        lens = np.minimum(scale * ln[1:] / ln[0], min(4.0 * typ, 0.6 * H))   # a tiny sampled L1 share
+                                                                            # would give huge children
+        beta = np.arctan2(back[1], back[0])
+        sense = -1.0 if rng.random() < model.mirror_p else 1.0     # clockwise = mirrored
+        valid = None
+        # the sampled shape first; where it does not fit, shorter and turned further
+        for shrink, widen in ((1.0, 1.0), (0.75, 1.0), (0.5, 2.0), (0.35, 2.0)):
+            cand = turns * widen
+            ok_turn = (th[0] + cand >= MIN_ANGLE) & (th[2] - cand >= MIN_ANGLE)
+            phi = cand[ok_turn] if ok_turn.any() else np.zeros(1)
+            a1 = beta + sense * (th[0] + phi)                              # continuation
+            a2 = beta + sense * (th[0] + th[1] + phi)                      # side branch
+            dirs = np.stack([np.stack([np.cos(a1), np.sin(a1)], 1), np.stack([np.cos(a2), np.sin(a2)], 1)])  # (2, L, 2)
+            ll = lens * shrink
+            ends = pos[i][None, None] + dirs * ll[:, None, None]                     # (2, L, 2)
+            pts = pos[i][None, None, None] + dirs[:, :, None] * (ll[:, None, None, None] * along[None, None, :, None])
+            valid = region.contains(pts).all(axis=(0, 2))                            # (L,)
+            if valid.any():
+                break
+        if not valid.any() or ll.min() < 0.25 * min_len:
+            live.pop(k)
+            continue
+        need = n_seg(ll[0]) + n_seg(ll[1])
+        if total + need > budget:
+            live.pop(k)
+            stopped = "node budget reached"
+            continue
+        dn = np.minimum(_seg_dist(attr, np.repeat(pos[i][None], len(phi), 0), ends[0]),
+                        _seg_dist(attr, np.repeat(pos[i][None], len(phi), 0), ends[1]))   # (L, K)
+        gain = np.maximum(d_cur[None] - dn, 0.0).sum(1) * valid                       # E (Eq. 5–6)
+        angle = np.exp(-phi ** 2 / (2 * sigma ** 2))                                  # angle term
+        # tropism: each new branch's angle γ from the vertical against the example's (mean, std)
+        gam = np.degrees(np.abs(np.arctan2(dirs[..., 0], dirs[..., 1])))              # (2, L)
+        trop = np.exp(-np.sum((gam - o_mean) ** 2, 0) / (2 * o_std ** 2)) if p.tropism else 1.0
+        post = angle * trop * (gain / gain.sum() if gain.sum() > 0 else 1.0) * valid
+        b = int(np.argmax(post))
+        live.pop(k)
+        for c in range(2):
+            pos.append(ends[c, b].copy())
+            par.append(i)
+            if ll[c] >= min_len or len(live) < 2:     # short branches stop, but never the last tips
+                live.append(len(pos) - 1)
+        d_cur = np.minimum(d_cur, dn[b])
+        total += need
+    report(progress, "growing", 1.0)
+    parents, xz, anchor = _subdivide(np.array(par), np.array(pos), region, n_seg, p.bend, rng)
+    return Grown2D(parents, xz, anchor, stopped)
+
+
+def _dirichlet(rng: np.random.Generator, alpha: np.ndarray) -> np.ndarray:
+    z = rng.dirichlet(alpha)
+    z = np.maximum(np.where(np.isfinite(z), z, 0.0), 1e-9)
+    return z / z.sum()
+
+
+def _subdivide(par: np.ndarray, pos: np.ndarray, region: Region2D, n_seg, bend: float,
+               rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Split every anchor edge into ``n_seg(length)`` bones, bent by a minimum-jerk bump of up to
+    ``bend`` × length where the bent branch stays inside Ω'. Parents precede children."""
+    from .details import minimum_jerk
+    new_index = np.zeros(len(par), int)
+    parents = [-1]
+    out = [pos[0]]
+    anchor = [True]
+    for a in range(1, len(par)):                     # anchors were created parents-first
+        p = par[a]
+        A, B = pos[p], pos[a]
+        L = float(np.linalg.norm(B - A))
+        n = n_seg(L)
+        if n > 1:
+            tau = np.arange(1, n) / n
+            s = minimum_jerk(tau)
+            normal = np.array([-(B - A)[1], (B - A)[0]]) / max(L, 1e-12)
+            off = bend * L * rng.uniform(-1.0, 1.0)
+            mids = A[None] + (B - A)[None] * tau[:, None] + normal[None] * (off * 4 * s * (1 - s))[:, None]
+            if not region.contains(mids).all():
+                mids = A[None] + (B - A)[None] * tau[:, None]
+        else:
+            mids = np.zeros((0, 2))
+        prev = new_index[p]
+        for m in mids:
+            out.append(m)
+            parents.append(prev)
+            anchor.append(False)
+            prev = len(out) - 1
+        out.append(B)
+        parents.append(prev)
+        anchor.append(True)
+        new_index[a] = len(out) - 1
+    return np.array(parents, np.int32), np.array(out, np.float64), np.array(anchor, bool)
+
+
+def lift_grown(g: Grown2D, region: Region2D, conifer: bool, p: GrowParams,
+               progress: ProgressFn | None = None):
+    """3D rest pose ``(N, 3)`` metres of the 2D tree by :func:`.lift3d.lift` on a raster of Ω'
+    ``RASTER_HEIGHT_PX`` tall; returns (nodes, Lift)."""
+    H = max(region.height(), float(g.pos[:, 1].max()), 1e-6)
+    k = RASTER_HEIGHT_PX / H                                       # px per metre
+    poly = envelope_polygon_of_region(region)
+    lo, hi = np.minimum(poly.min(0), g.pos.min(0)), np.maximum(poly.max(0), g.pos.max(0))
+    bx, by = -lo[0] * k + 10.0, hi[1] * k + 10.0
+    W, Hh = int(np.ceil((hi[0] - lo[0]) * k)) + 21, int(np.ceil(hi[1] * k)) + 21
+
+    def to_px(xz):
+        return np.stack([bx + xz[..., 0] * k, by - xz[..., 1] * k], -1)
+    poly_px = to_px(poly)
+    mask = polygon_to_mask(poly_px, W, Hh)
+    mask[int(round(by)) + 1:] = False
+    skel = Skeleton2D(g.parents, to_px(g.pos)[None].astype(np.float32), branching_level(g.parents), 24.0, "generated")
+    lp = LiftParams(candidates=int(p.lift_candidates), attractors=int(p.lift_attractors), conifer=bool(conifer),
+                    seed=int(p.seed))
+    lifted = lift(skel, Outline(poly_px.astype(np.float32), mask), lp, progress)
+    nodes = lifted.nodes / k                                       # plane frame px → metres
+    nodes[:, [0, 2]] = g.pos                                       # exact 2D positions
+    return nodes, lifted
+
+
+def envelope_polygon_of_region(region: Region2D) -> np.ndarray:
+    return np.asarray(region.polygon, np.float64)
+
+
+def grow_tree(model: SpeciesModel, envelope: Envelope, params: GrowParams | None = None,
+              audio: str | os.PathLike | np.ndarray | None = None,
+              progress: ProgressFn | None = None) -> Tree3D:
+    """A new animated tree (metres; node 0 the trunk base at the origin) like ``model`` inside
+    ``envelope`` (module docstring). ``audio``: a WAV path or an envelope ``(F,)`` (mean 1) that
+    modulates the sway. ``meta`` has "species", "seed", "envelope" (z/centre/radius and the 2D
+    polygon, metres), "generated", "wind", "stopped", "conifer", "mu_deg", "height_px",
+    "metres_per_px", "leaf_density". Cancellable through ``progress``; deterministic per seed."""
+    p = params or GrowParams()
+    check_params(p)
+    env = envelope
+    env_h = float(np.max(env.z)) if len(env.z) else 0.0
+    if not env_h > 0 or not np.max(env.radius) > 0:
+        raise InputError("the envelope is empty (no height or width); pick a shape, an image or a curve")
+    if p.height_m is not None and abs(p.height_m - env_h) > 1e-9 * env_h:
+        env = scale_envelope(env, p.height_m / env_h)
+    fps = float(p.fps or model.fps)
+    n_frames = int(p.n_frames)
+    conifer = model.conifer if p.conifer is None else bool(p.conifer)
+    gains = None
+    if audio is not None:
+        a = audio_envelope(audio, fps, n_frames) if isinstance(audio, (str, os.PathLike)) else audio
+        gains = gain_curve(n_frames, p.wind, a)
+    else:
+        gains = gain_curve(n_frames, p.wind)
+    ss = np.random.SeedSequence([int(p.seed) & 0xFFFFFFFF, 0x7EE])
+    rng_grow, rng_sway = (np.random.default_rng(s) for s in ss.spawn(2))
+    region = region_of(env)
+    report(progress, "growing", 0.0)
+    g = grow_2d(model, region, p, rng_grow, sub_progress(progress, 0.0, 0.4))
+    rest, lifted = lift_grown(g, region, conifer, p, sub_progress(progress, 0.4, 0.85))
+    report(progress, "animating", 0.85)
+    phase = None if p.tree_phase is None else np.asarray(p.tree_phase, float)
+    rot = sample_rotations(model, g.parents, rest, n_frames, fps, rng_sway, p.time_offset_s, phase)
+    rot *= gains[:, None, None]
+    nodes3d = forward_kinematics(g.parents, rest, rot)
+    report(progress, "animating", 1.0)
+    H = float(max(rest[:, 2].max(), 1e-6))
+    radius = pipe_radii(g.parents, p.tip_radius * H, p.pipe_exponent)
+    k = RASTER_HEIGHT_PX / max(region.height(), float(g.pos[:, 1].max()), 1e-6)
+    meta = {"species": model.name, "seed": int(p.seed), "generated": True, "envelope": envelope_meta(env),
+            "wind": float(p.wind), "audio": os.fspath(audio) if isinstance(audio, (str, os.PathLike)) else
+            (None if audio is None else "envelope"), "stopped": g.stopped, "conifer": bool(conifer),
+            "mu_deg": float(np.degrees(lifted.mu)), "height_px": float(H * k), "metres_per_px": float(1.0 / k),
+            "leaf_density": float(p.leaf_density), "node_budget": int(p.node_budget),
+            "time_offset_s": float(p.time_offset_s)}
+    return Tree3D(g.parents.astype(np.int32), nodes3d.astype(np.float32), radius,
+                  branching_level(g.parents).astype(np.int32), fps, p.name or f"{model.name}_{int(p.seed)}", meta)
