@@ -59,6 +59,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--solver", choices=("probabilistic", "deterministic"), default="probabilistic",
                    help="3D motion solver (default probabilistic, paper §4; deterministic: sphere/line-of-sight baseline)")
     p.add_argument("--height", type=float, default=10.0, help="tree height in the scene, metres (default 10)")
+    p.add_argument("--twigs", type=int, default=0, metavar="DEPTH",
+                   help="generations of twigs copied from the tree's own forks, 0..6 (default 0: none; 2 looks natural)")
+    p.add_argument("--curliness", type=float, default=0.0,
+                   help="bend the branch tubes along minimum-jerk curves, 0..1 (default 0: straight)")
+    p.add_argument("--bark", choices=("none", "smooth", "rough"), default="none",
+                   help="bark relief on the tubes: smooth (<= 0.5%% of the radius) or rough (1-5%%) (default none)")
     p.add_argument("--fbx", action="store_true", help="write DIR/tree.fbx (armature + skinned mesh, baked animation)")
     p.add_argument("--usd", action="store_true", help="write DIR/tree.usdc (needs a Blender built with USD)")
     p.add_argument("--gltf", action="store_true", help="write DIR/tree.glb (glTF binary, animation from t = 0)")
@@ -127,6 +133,8 @@ def main(argv: list[str] | None = None) -> int:
                                      scale=args.scale, height_m=args.height)
         settings.lift.conifer = args.conifer
         settings.motion.solver = args.solver
+        settings.twigs.depth = args.twigs
+        settings.curliness, settings.bark = args.curliness, args.bark
         pipeline.check_settings(settings)
         _check_out(args.out, names, args.force, errors.InputError)
         outputs = _blender_outputs(pkg, errors.InputError) if blender_files else None

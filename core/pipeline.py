@@ -12,13 +12,15 @@ from . import cache
 from .appearance import AppearanceAccumulator, AppearanceMaps
 from .errors import InputError
 from .hierarchy import Hierarchy, HierarchyParams, build_hierarchy
+from .leaves import LeafParams, place_leaves
 from .lift3d import LiftParams, envelope_to_meta, lift
 from .motion import MotionParams, solve_motion
 from .outline import Outline, load_outline, polygon_outline
 from .progress import ProgressFn, report, sub_progress
 from .skeleton2d import Skeleton2D, paper_skeleton
 from .trace import TraceParams, traced_skeleton
-from .tracks import Tracker, TrackParams, Tracks
+from .twigs import TwigParams, add_twigs
+from .tracks import Tracker, TrackParams, Tracks, detect_corners
 from .tree3d import Tree3D, image_to_plane, pipe_radii
 from .video import VideoInfo, iter_frames, open_video, parse_frame_range, prefetch
 
@@ -42,6 +44,10 @@ class Settings:
     height_m: float = 10.0          # the tree's height in the scene, metres
     tip_radius: float = 0.0025      # branch radius at the tips, share of the height (pipe model)
     pipe_exponent: float = 2.0      # r_parent^e = Σ r_child^e
+    twigs: TwigParams = field(default_factory=TwigParams)   # depth 0: no twigs
+    curliness: float = 0.0          # branch mesh: minimum-jerk bend, 0..1 (recorded in meta["mesh"])
+    bark: str = "none"              # branch mesh: "none", "smooth" or "rough" (recorded in meta["mesh"])
+    leaves: LeafParams | None = field(default_factory=LeafParams)   # None: bare branches
 
 
 @dataclass
@@ -65,6 +71,10 @@ def check_settings(s: Settings) -> None:
         raise InputError(f"unknown skeleton '{s.skeleton}'; choose one of {', '.join(SKELETON_KINDS)}")
     if not 2 <= s.levels <= 9:
         raise InputError(f"levels {s.levels} out of range; use 2..9 (the paper uses 5–7)")
+    if not 0 <= s.twigs.depth <= 6:
+        raise InputError(f"twig depth {s.twigs.depth} out of range; use 0..6 (0: no twigs)")
+    from .branch_mesh import MeshParams, check_params
+    check_params(MeshParams(curliness=s.curliness, bark=s.bark))
 
 
 def track_video(info: VideoInfo, outline: Outline, start: int, stop: int, params: TrackParams,
@@ -146,6 +156,29 @@ def build_3d(res: Result, s: Settings | None = None, name: str = "Tree",
     radius = pipe_radii(sk.parents, s.tip_radius * s.height_m, s.pipe_exponent)
     meta = {"height_px": height_px, "metres_per_px": scale, "solver": s.motion.solver,
             "conifer": s.lift.conifer, "mu_deg": float(np.degrees(lifted.mu)),
-            "envelope": envelope_to_meta(lifted.envelope, scale)}
-    return Tree3D(sk.parents.copy(), (mo.nodes * scale).astype(np.float32), radius, sk.level.copy(),
+            "envelope": envelope_to_meta(lifted.envelope, scale),
+            "mesh": {"curliness": float(s.curliness), "bark": s.bark, "seed": int(s.twigs.seed)},
+            "base_px": [float(base[0]), float(base[1])],          # trunk base in frame 1 (x, y) px
+            "video_size": [int(res.outline.mask.shape[1]), int(res.outline.mask.shape[0])]}
+    tree = Tree3D(sk.parents.copy(), (mo.nodes * scale).astype(np.float32), radius, sk.level.copy(),
                   sk.fps, name, meta)
+    tree = add_twigs(tree, s.twigs, progress)          # after the motion solve, before the leaves
+    return add_leaves(res, tree, s)
+
+
+def add_leaves(res: Result, tree: Tree3D, s: Settings) -> Tree3D:
+    """Leaf clusters from the frame-1 Harris points (``tree.leaves``); the tree unchanged when
+    ``s.leaves`` is None or frame 1 cannot be read again."""
+    if s.leaves is None:
+        return tree
+    frame = next(iter_frames(res.info, res.start, res.start + 1), None)
+    if frame is None:
+        return tree
+    mask = res.outline.mask
+    if frame.shape[:2] != mask.shape:
+        frame = cv2.resize(frame, mask.shape[::-1], interpolation=cv2.INTER_AREA)
+    # the paper's seeds: frame 1's Harris corners inside the outline (all of them, not only
+    # those that tracked well through the clip)
+    points = detect_corners(cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY), mask, s.track)
+    tree.leaves = place_leaves(tree, points, frame, res.skeleton.nodes2d[0, 0].astype(float), s.leaves, mask)
+    return tree

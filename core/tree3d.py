@@ -19,6 +19,48 @@ VERSION = 1
 
 
 @dataclass
+class LeafClusters:
+    """Leaf clusters riding on the tree's bones (built by :mod:`.leaves`).
+
+    ``node (S,)`` int32 tree node whose bone carries the cluster (the bone into that node; the
+    root's first child for node 0); ``pos (S, 3)`` float32 cluster centre at rest (tree frame 0),
+    metres; ``axis (S, 3)`` unit outward direction from the crown (the cluster's main axis);
+    ``colour (S, 3)`` float32 sRGB 0..1 sampled from the video at the seed; ``dark (S,)`` bool
+    (seed from the shaded half: behind the branches); ``flutter (F, S)`` float32 radians about
+    ``axis`` per frame, ``A(t) sin(ωt + β)``; ``radius`` metres of one cluster; ``leaf_size``
+    metres of one leaf card's length; ``cards`` leaf cards per cluster; ``seed`` of the template;
+    ``scale (S,)`` each cluster's size relative to ``radius`` (smaller near the outline's edge)."""
+
+    node: np.ndarray
+    pos: np.ndarray
+    axis: np.ndarray
+    colour: np.ndarray
+    dark: np.ndarray
+    flutter: np.ndarray
+    radius: float
+    leaf_size: float
+    cards: int
+    seed: int = 0
+    scale: np.ndarray | None = None
+
+    def scales(self) -> np.ndarray:
+        """``(S,)`` size of each cluster relative to ``radius`` (1 when not set)."""
+        return np.ones(len(self.node), np.float32) if self.scale is None else np.asarray(self.scale, np.float32)
+
+    @property
+    def count(self) -> int:
+        return len(self.node)
+
+    @property
+    def polygons(self) -> int:
+        """One quad per leaf card."""
+        return self.count * int(self.cards)
+
+
+LEAF_ARRAYS = ("node", "pos", "axis", "colour", "dark", "flutter", "scale")
+
+
+@dataclass
 class Tree3D:
     """``parents (N,)`` int32 (-1 root = trunk base, node 0); ``nodes3d (F, N, 3)`` float32 metres
     for every frame; ``radius (N,)`` float32 metres (branch radius at each node); ``level (N,)``
@@ -31,6 +73,7 @@ class Tree3D:
     fps: float
     name: str = "Tree"
     meta: dict = field(default_factory=dict)
+    leaves: LeafClusters | None = None
 
     @property
     def n_nodes(self) -> int:
@@ -79,9 +122,16 @@ def plane_to_image(p: np.ndarray, base_px: np.ndarray) -> np.ndarray:
 def save_tree(path: str | os.PathLike, tree: Tree3D) -> None:
     """Write ``tree`` as ``.npz`` (arrays + JSON metadata), atomically; no pickle."""
     meta = {"format": FORMAT, "version": VERSION, "name": tree.name, **tree.meta}
+    extra = {}
+    if tree.leaves is not None:
+        lv = tree.leaves
+        meta["leaves"] = {"radius": float(lv.radius), "leaf_size": float(lv.leaf_size),
+                          "cards": int(lv.cards), "seed": int(lv.seed)}
+        extra = {f"leaf_{k}": np.asarray(getattr(lv, k) if k != "scale" else lv.scales())
+                 for k in LEAF_ARRAYS}
     atomic_savez(path, parents=tree.parents.astype(np.int32), nodes3d=tree.nodes3d.astype(np.float32),
                  radius=tree.radius.astype(np.float32), level=tree.level.astype(np.int32),
-                 fps=np.float64(tree.fps), meta_json=np.array(json.dumps(meta)))
+                 fps=np.float64(tree.fps), meta_json=np.array(json.dumps(meta)), **extra)
 
 
 def load_tree(path: str | os.PathLike) -> Tree3D:
@@ -91,6 +141,11 @@ def load_tree(path: str | os.PathLike) -> Tree3D:
             from .errors import InputError
             raise InputError(f"'{path}' is not a Tree from Video 3D tree file")
         name = meta.pop("name", "Tree")
+        leaves = None
+        info = meta.pop("leaves", None)
+        if info is not None and "leaf_node" in z.files:
+            arrays = {k: z[f"leaf_{k}"] for k in LEAF_ARRAYS if f"leaf_{k}" in z.files}
+            leaves = LeafClusters(**arrays, **info)
         return Tree3D(z["parents"].astype(np.int32), z["nodes3d"].astype(np.float32),
                       z["radius"].astype(np.float32), z["level"].astype(np.int32), float(z["fps"]),
-                      name, meta)
+                      name, meta, leaves)

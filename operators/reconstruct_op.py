@@ -48,6 +48,8 @@ def settings_from(props) -> pipeline.Settings:
     s.motion.sigma_shape = props.sigma_shape
     s.motion.max_step = props.max_step
     s.motion.max_total = props.max_total
+    s.twigs.depth = props.twig_depth
+    s.curliness, s.bark = props.curliness, props.bark
     return s
 
 

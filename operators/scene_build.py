@@ -13,16 +13,19 @@ import bpy
 import numpy as np
 
 from ..core import bones as bn
+from ..core import branch_mesh as bm
+from ..core.branch_mesh import branch_radii, tube_arrays  # noqa: F401  (re-exported)
 from ..core.errors import InputError
 from ..core.tree3d import Tree3D
-from . import action_api
+from . import action_api, leaves_build
 
 #: Blender's longest ID name (bytes).
 MAX_NAME = 63
 
 
 def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = False,
-               mesh: bool = True, sides: int = 8) -> dict:
+               mesh: bool = True, sides: int = 8, leaves: bool = True, curliness: float | None = None,
+               bark: str | None = None) -> dict:
     """Create the animated tree in a new collection ``collection_name`` under the scene collection.
 
     Creates an armature object ``"<name> Rig"`` (one bone per edge, ``"B{child:03d}"``, rest pose =
@@ -30,23 +33,31 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
     mode at every scene frame ``1..F`` (LINEAR keys, action ``"<name> Sway"``); sets the scene's
     fps (``fps`` int + ``fps_base``) and frame range ``1..F``; with ``mesh``, a branch mesh
     ``"<name> Branches"`` (tapered tubes with ``sides`` sides, one vertex group per bone, Armature
-    modifier, parented to the rig) and a bark material ``"<name> Bark"``.
+    modifier, parented to the rig; ``curliness`` 0..1 and ``bark`` "none"/"smooth"/"rough" as in
+    :mod:`core.branch_mesh`, None: from ``tree.meta["mesh"]``, see :func:`mesh_params`) and a bark
+    material ``"<name> Bark"``; with ``leaves`` and
+    ``tree.leaves``, one bone per leaf cluster (``"L0000"``…, child of its branch bone, keyed with
+    its flutter) and a skinned leaf mesh ``"<name> Leaves"`` with material ``"<name> Leaf"``.
 
     An existing collection of that name raises :class:`InputError` unless ``replace``; then its
     objects and their data are removed once the new tree is complete (a failed build leaves the
     old tree as it was).
 
     Returns ``{"collection", "armature", "mesh" (or None), "action", "material" (or None),
-    "timings"}`` with ``timings`` in seconds (``rotations``, ``keys``, ``armature``, ``mesh``,
-    ``total``)."""
+    "leaves" (or None), "leaf_polygons", "timings"}`` with ``timings`` in seconds (``rotations``,
+    ``keys``, ``armature``, ``mesh``, ``leaves``, ``total``)."""
     t_total = time.perf_counter()
     _validate(tree, collection_name, sides)
+    branch_params = mesh_params(tree, sides, curliness, bark)
+    bm.check_params(branch_params)
     old = bpy.data.collections.get(collection_name)
     if old is not None and not replace:
         raise InputError(f"a collection named '{collection_name}' already exists; choose another name "
                          "or replace it (replace=True)")
     names = {"rig": f"{collection_name} Rig", "action": f"{collection_name} Sway",
-             "mesh": f"{collection_name} Branches", "material": f"{collection_name} Bark"}
+             "mesh": f"{collection_name} Branches", "material": f"{collection_name} Bark",
+             "leaves": f"{collection_name} Leaves", "leaf_material": f"{collection_name} Leaf"}
+    with_leaves = leaves and tree.leaves is not None and tree.leaves.count > 0
     created = _Created()
     timings = {}
     try:
@@ -58,13 +69,16 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
 
         t = time.perf_counter()
         rig, rest = _build_armature(context, tree, coll, names["rig"], created)
+        leaf_names = leaves_build.add_leaf_bones(context, rig, tree) if with_leaves else []
         timings["armature"] = time.perf_counter() - t
 
         t = time.perf_counter()
         local = bn.local_rotations(tree.parents, tree.nodes3d, rest)
         timings["rotations"] = time.perf_counter() - t
         t = time.perf_counter()
-        action = _key_pose(rig, local, bn.bone_names(tree.parents), names["action"], created)
+        action, make_fcurve = _key_pose(rig, local, bn.bone_names(tree.parents), names["action"], created)
+        if leaf_names:
+            leaves_build.key_leaf_bones(rig, make_fcurve, tree, leaf_names)
         timings["keys"] = time.perf_counter() - t
         render = scene.render
         saved = (render.fps, render.fps_base, scene.frame_start, scene.frame_end, scene.frame_current)
@@ -74,15 +88,25 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
         mesh_obj = material = None
         if mesh:
             t = time.perf_counter()
-            material = created.add(bpy.data.materials, bark_material(names["material"]))
-            mesh_obj = _build_mesh(tree, rest, rig, coll, names["mesh"], material, sides, created)
+            material = created.add(bpy.data.materials, bark_material(names["material"], branch_params.bark))
+            mesh_obj = _build_mesh(tree, rest, rig, coll, names["mesh"], material, branch_params, created)
             timings["mesh"] = time.perf_counter() - t
+        leaf_obj = leaf_mat = None
+        if leaf_names:
+            t = time.perf_counter()
+            leaf_mat = created.add(bpy.data.materials, leaves_build.leaf_material(names["leaf_material"]))
+            for img in leaves_build.material_images(leaf_mat):
+                created.add(bpy.data.images, img)
+            leaf_obj = leaves_build.build_leaf_mesh(tree, rig, coll, names["leaves"], leaf_names, leaf_mat, created)
+            timings["leaves"] = time.perf_counter() - t
 
         if old is not None:
             remove_collection(old)
             for id_, name in ((coll, collection_name), (rig, names["rig"]), (rig.data, names["rig"]),
                               (action, names["action"]), (mesh_obj, names["mesh"]),
-                              (mesh_obj and mesh_obj.data, names["mesh"]), (material, names["material"])):
+                              (mesh_obj and mesh_obj.data, names["mesh"]), (material, names["material"]),
+                              (leaf_obj, names["leaves"]), (leaf_obj and leaf_obj.data, names["leaves"]),
+                              (leaf_mat, names["leaf_material"])):
                 if id_ is not None and id_.name != name:
                     id_.name = name
         deselect_all(context.view_layer)
@@ -95,7 +119,8 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
         raise
     timings["total"] = time.perf_counter() - t_total
     return {"collection": coll, "armature": rig, "mesh": mesh_obj, "action": action,
-            "material": material, "timings": timings}
+            "material": material, "leaves": leaf_obj,
+            "leaf_polygons": tree.leaves.polygons if leaf_obj is not None else 0, "timings": timings}
 
 
 def remove_collection(coll: bpy.types.Collection) -> None:
@@ -112,7 +137,8 @@ def remove_collection(coll: bpy.types.Collection) -> None:
     children = list(coll.children_recursive)
     for ob in objects:
         bpy.data.objects.remove(ob, do_unlink=True)
-    for ids in (datas, actions, materials):
+    images = {img for m in materials for img in leaves_build.material_images(m)}
+    for ids in (datas, actions, materials, images):
         for id_ in ids:
             if id_.users == 0:
                 _data_collection(id_).remove(id_)
@@ -188,7 +214,7 @@ class _Created:
 def _data_collection(id_):
     for attr, typ in (("meshes", bpy.types.Mesh), ("armatures", bpy.types.Armature),
                       ("actions", bpy.types.Action), ("materials", bpy.types.Material),
-                      ("curves", bpy.types.Curve)):
+                      ("curves", bpy.types.Curve), ("images", bpy.types.Image)):
         if isinstance(id_, typ):
             return getattr(bpy.data, attr)
     raise TypeError(f"no removal for {type(id_).__name__}")
@@ -256,7 +282,7 @@ def _key_pose(rig, local: np.ndarray, names: list[str], action_name: str, create
         path = f'pose.bones["{bpy.utils.escape_identifier(name)}"].rotation_quaternion'
         for i in range(4):
             action_api.write_keys(make_fcurve(path, i, name), frames, local[:, b, i])
-    return action
+    return action, make_fcurve
 
 
 def _set_scene_timing(scene, fps: float, n_frames: int) -> None:
@@ -288,98 +314,26 @@ def set_frame_range(scene, start: int, end: int) -> None:
 
 # ----------------------------------------------------------------------------- mesh
 
-def branch_radii(parents: np.ndarray, radius: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Tube radii at each bone's head and tail, ``(B,)`` each, metres.
-
-    The tail takes its node's radius. The head takes the parent node's radius if the bone
-    continues its parent branch (it is the thickest child), else the smaller of the two: a side
-    branch starts as thick as itself, not as the trunk it leaves."""
-    edges = bn.bone_edges(parents)
-    radius = np.asarray(radius, np.float64)
-    r_tail = radius[edges[:, 1]]
-    thickest = np.zeros(len(parents))
-    np.maximum.at(thickest, edges[:, 0], r_tail)
-    main = r_tail >= thickest[edges[:, 0]]
-    r_head = np.where(main, radius[edges[:, 0]], np.minimum(radius[edges[:, 0]], r_tail))
-    return r_head, r_tail
+def mesh_params(tree: Tree3D, sides: int = 8, curliness: float | None = None, bark: str | None = None,
+                seed: int | None = None) -> bm.MeshParams:
+    """The branch mesh settings: the given ones, else those recorded in ``tree.meta["mesh"]``
+    (``curliness``, ``bark``, ``seed``; written by ``pipeline.build_3d``), else straight plain tubes."""
+    rec = tree.meta.get("mesh") or {}
+    return bm.MeshParams(sides=sides,
+                         curliness=float(rec.get("curliness", 0.0) if curliness is None else curliness),
+                         bark=str(rec.get("bark", "none") if bark is None else bark),
+                         seed=int(rec.get("seed", 0) if seed is None else seed))
 
 
-def tube_arrays(rest_pos: np.ndarray, parents: np.ndarray, rest: np.ndarray, r_head: np.ndarray,
-                r_tail: np.ndarray, sides: int = 8) -> dict:
-    """Geometry of one closed tapered tube per bone (pure numpy).
-
-    ``rest_pos (N, 3)`` metres, ``rest (B, 3, 3)`` bone rest rotations (rings lie in the bones'
-    X/Z planes), radii ``(B,)`` metres. Each tube of a bone with a parent bone starts ``r_head``
-    (at most half the parent's length) before its head, inside the parent's tube, so joints stay
-    closed when the tree bends; both ends are capped.
-
-    Returns arrays: ``co (V, 3)``; ``loop_vert (L,)``; ``loop_start``, ``loop_total``,
-    ``smooth (P,)``; ``uv (L, 2)`` (u around in [0, 1], v along the branch from the trunk base in
-    metres ÷ the thickest tube's circumference, so bark texels are square on the trunk);
-    ``vert_bone (V,)``. ``V = 2·S·B``, ``P = (S + 2)·B``,
-    ``L = 6·S·B``."""
-    S = int(sides)
-    edges = bn.bone_edges(parents)
-    parent_bone = bn.bone_parents(parents)
-    B = len(edges)
-    P0 = np.asarray(rest_pos, np.float64)
-    seg = P0[edges[:, 1]] - P0[edges[:, 0]]
-    length = np.linalg.norm(seg, axis=1)
-    axis_x, axis_y, axis_z = rest[:, :, 0], rest[:, :, 1], rest[:, :, 2]
-    ext = np.where(parent_bone >= 0, np.minimum(r_head, 0.5 * length[np.maximum(parent_bone, 0)]), 0.0)
-
-    # arc length from the trunk base to every node, at rest (parents before children by depth)
-    arc = np.zeros(len(parents))
-    depth = bn.bone_depths(parent_bone)
-    for d in range(depth.max() + 1):
-        idx = np.flatnonzero(depth == d)
-        arc[edges[idx, 1]] = arc[edges[idx, 0]] + length[idx]
-    tile = 2 * math.pi * max(float(np.max(r_head)), 1e-6)
-    v_head = (arc[edges[:, 0]] - ext) / tile
-    v_tail = arc[edges[:, 1]] / tile
-
-    theta = 2 * math.pi * np.arange(S) / S
-    ring = np.cos(theta)[None, :, None] * axis_x[:, None] + np.sin(theta)[None, :, None] * axis_z[:, None]
-    head_c = P0[edges[:, 0]] - axis_y * ext[:, None]
-    tail_c = P0[edges[:, 1]]
-    co = np.concatenate([head_c[:, None] + r_head[:, None, None] * ring,
-                         tail_c[:, None] + r_tail[:, None, None] * ring], axis=1)     # (B, 2S, 3)
-
-    k = np.arange(S)
-    kn = (k + 1) % S
-    side = np.stack([k, S + k, S + kn, kn], axis=1).ravel()                          # outward normals
-    head_cap = k                                                                     # normal -Y
-    tail_cap = S + k[::-1]                                                           # normal +Y
-    per_bone = np.concatenate([side, head_cap, tail_cap])                            # (6S,)
-    loop_vert = (per_bone[None] + 2 * S * np.arange(B)[:, None]).ravel()
-    totals = np.concatenate([np.full(S, 4), [S, S]])
-    starts = np.concatenate([[0], np.cumsum(totals)[:-1]])
-    loop_start = (starts[None] + 6 * S * np.arange(B)[:, None]).ravel()
-    loop_total = np.tile(totals, B)
-    smooth = np.tile(np.concatenate([np.ones(S, bool), [False, False]]), B)
-
-    u_side = np.stack([k, k, k + 1, k + 1], axis=1).ravel() / S                      # (4S,)
-    v_side = np.array([0.0, 1.0, 1.0, 0.0])[None].repeat(S, 0).ravel()              # 0 head, 1 tail
-    u_cap = 0.5 + np.cos(theta) / (2 * math.pi)
-    uv = np.empty((B, 6 * S, 2))
-    uv[:, :4 * S, 0] = u_side
-    uv[:, :4 * S, 1] = v_head[:, None] + v_side[None] * (v_tail - v_head)[:, None]
-    uv[:, 4 * S:5 * S, 0] = u_cap
-    uv[:, 4 * S:5 * S, 1] = v_head[:, None] + (r_head[:, None] / tile) * np.sin(theta)[None]
-    uv[:, 5 * S:, 0] = u_cap[::-1]
-    uv[:, 5 * S:, 1] = v_tail[:, None] + (r_tail[:, None] / tile) * np.sin(theta[::-1])[None]
-    return {"co": co.reshape(-1, 3), "loop_vert": loop_vert, "loop_start": loop_start,
-            "loop_total": loop_total, "smooth": smooth, "uv": uv.reshape(-1, 2),
-            "vert_bone": np.repeat(np.arange(B), 2 * S)}
-
-
-def _build_mesh(tree: Tree3D, rest: np.ndarray, rig, coll, name: str, material, sides: int,
+def _build_mesh(tree: Tree3D, rest: np.ndarray, rig, coll, name: str, material, params: bm.MeshParams,
                 created: _Created):
-    """The skinned branch mesh object (see :func:`tube_arrays`), parented to ``rig``."""
+    """The skinned branch mesh object (see :func:`core.branch_mesh.tube_arrays`), parented to
+    ``rig``: one vertex group per bone holding its rings (weight 1), bulk-filled by ``foreach_set``."""
     r_head, r_tail = branch_radii(tree.parents, tree.radius)
     floor = 1e-4 * max(float(np.ptp(tree.nodes3d[0], axis=0).max()), 1e-3)
     g = tube_arrays(tree.nodes3d[0], tree.parents, rest, np.maximum(r_head, floor),
-                    np.maximum(r_tail, floor), sides)
+                    np.maximum(r_tail, floor), params.sides, curliness=params.curliness, bark=params.bark,
+                    rings=params.rings, seed=params.seed)
     me = created.add(bpy.data.meshes, bpy.data.meshes.new(name))
     me.vertices.add(len(g["co"]))
     me.vertices.foreach_set("co", g["co"].astype(np.float32).ravel())
@@ -398,8 +352,8 @@ def _build_mesh(tree: Tree3D, rest: np.ndarray, rig, coll, name: str, material, 
     ob = created.add(bpy.data.objects, bpy.data.objects.new(name, me))
     coll.objects.link(ob)
     bone_names = bn.bone_names(tree.parents)
-    per_bone = 2 * int(sides)
-    for b, bname in enumerate(bone_names):
+    per_bone = g["rings"] * g["sides"]
+    for b, bname in enumerate(bone_names):         # one call per bone (vertex weights have no foreach_set)
         ob.vertex_groups.new(name=bname).add(list(range(b * per_bone, (b + 1) * per_bone)), 1.0, "REPLACE")
     mod = ob.modifiers.new("Armature", "ARMATURE")
     mod.object = rig
@@ -407,9 +361,16 @@ def _build_mesh(tree: Tree3D, rest: np.ndarray, rig, coll, name: str, material, 
     return ob
 
 
-def bark_material(name: str) -> bpy.types.Material:
-    """A Principled BSDF bark: brown-grey noise colour, Voronoi bump, UV-mapped (the bark follows
-    the bending branches). The caller removes it on failure."""
+#: bark material by preset: (bump strength, furrow share of the relief)
+BARK_LOOK = {"none": (0.35, 0.0), "smooth": (0.2, 0.15), "rough": (0.6, 0.6)}
+
+
+def bark_material(name: str, kind: str = "none") -> bpy.types.Material:
+    """A Principled BSDF bark, procedural and UV-mapped (the bark follows the bending branches):
+    brown-grey noise colour; bump from Voronoi cells plus, for ``kind`` "smooth"/"rough", furrows
+    along the branch (a distorted Wave texture in bands across u, i.e. running along v), with the
+    strengths of :data:`BARK_LOOK`. The caller removes it on failure."""
+    strength, furrow = BARK_LOOK.get(kind, BARK_LOOK["none"])
     mat = bpy.data.materials.new(name)
     try:
         mat.diffuse_color = (0.22, 0.17, 0.13, 1.0)          # solid-view colour
@@ -434,7 +395,7 @@ def bark_material(name: str) -> bpy.types.Material:
         voronoi.inputs["Scale"].default_value = 5.0
         ramp.color_ramp.elements[0].color = (0.07, 0.055, 0.045, 1.0)
         ramp.color_ramp.elements[1].color = (0.33, 0.29, 0.25, 1.0)
-        bump.inputs["Strength"].default_value = 0.35
+        bump.inputs["Strength"].default_value = strength
         bsdf.inputs["Roughness"].default_value = 0.9
         link = nt.links.new
         link(coord.outputs["UV"], mapping.inputs["Vector"])
@@ -442,7 +403,23 @@ def bark_material(name: str) -> bpy.types.Material:
         link(mapping.outputs["Vector"], voronoi.inputs["Vector"])
         link(noise.outputs["Fac"], ramp.inputs["Fac"])
         link(ramp.outputs["Color"], bsdf.inputs["Base Color"])
-        link(voronoi.outputs["Distance"], bump.inputs["Height"])
+        height = voronoi.outputs["Distance"]
+        if furrow > 0:
+            wave = nt.nodes.new("ShaderNodeTexWave")
+            wave.wave_type = "BANDS"
+            wave.bands_direction = "X"                       # bands across u: furrows along the branch
+            wave.inputs["Scale"].default_value = 2.0
+            wave.inputs["Distortion"].default_value = 6.0
+            wave.inputs["Detail"].default_value = 4.0
+            mix = nt.nodes.new("ShaderNodeMath")
+            mix.operation = "MULTIPLY_ADD"                   # wave · furrow + Voronoi distance
+            mix.inputs[1].default_value = furrow
+            wave.location, mix.location = (-460, -350), (-240, -350)
+            link(mapping.outputs["Vector"], wave.inputs["Vector"])
+            link(wave.outputs["Fac"], mix.inputs[0])
+            link(voronoi.outputs["Distance"], mix.inputs[2])
+            height = mix.outputs["Value"]
+        link(height, bump.inputs["Height"])
         link(bump.outputs["Normal"], bsdf.inputs["Normal"])
         link(bsdf.outputs["BSDF"], out.inputs["Surface"])
     except BaseException:

@@ -1,6 +1,7 @@
 """Leaf seeds: the dark/bright split against known leaves, and their 3D placement."""
 import cv2
 import numpy as np
+import pytest
 
 from tree_from_video.core import leaves, lift3d
 from tree_from_video.core.tracks import TrackParams, detect_corners
@@ -58,3 +59,115 @@ def test_seed_depth_goes_back_for_dark_and_front_for_bright(runs):
     assert np.all(s.pos3d[~s.dark, 1] <= y0[~s.dark] + 1e-3)        # bright: toward the front
     assert L.envelope.contains(s.pos3d.astype(float), tol=1.0).mean() > 0.95
     assert abs(s.dark.mean() - 0.5) < 0.02
+
+
+# ----------------------------------------------------------------------------- clusters and flutter
+
+def _swaying_tree(amp: float, hz: float = 0.4, frames: int = 240, fps: float = 24.0):
+    """A two-bone stick 2 m tall whose tip sways ``amp`` metres at ``hz``: node 2's speed is known."""
+    from tree_from_video.core.tree3d import Tree3D
+    t = np.arange(frames) / fps
+    nodes = np.zeros((frames, 3, 3), np.float32)
+    nodes[:, 1, 2] = 1.0
+    ang = amp * np.sin(2 * np.pi * hz * t)                      # small swing of the top bone
+    nodes[:, 2, 0] = np.sin(ang)
+    nodes[:, 2, 2] = 1.0 + np.cos(ang)
+    return Tree3D(np.array([-1, 0, 1], np.int32), nodes, np.full(3, 0.01, np.float32), np.zeros(3, np.int32), fps)
+
+
+def test_flutter_peaks_at_omega_and_scales_with_branch_speed():
+    """y(t) = A(t) sin(ωt + β), A ∝ branch speed: the spectrum peaks at ω (±1 bin) and doubling
+    the branch's swing doubles the flutter amplitude."""
+    hz = 3.0
+    amps = []
+    for swing in (0.05, 0.10):
+        tree = _swaying_tree(swing)
+        y = leaves.flutter_angles(tree, np.array([2]), np.array([0.3]), hz, gain=4.0)[:, 0]
+        spec = np.abs(np.fft.rfft(y - y.mean()))
+        freqs = np.fft.rfftfreq(len(y), 1 / tree.fps)
+        assert abs(freqs[np.argmax(spec)] - hz) <= freqs[1] + 1e-9
+        amps.append(np.sqrt(np.mean(y ** 2)))
+    print(f"flutter rms {np.degrees(amps[0]):.2f}° → {np.degrees(amps[1]):.2f}° for a 2× branch swing")
+    assert amps[1] / amps[0] == pytest.approx(2.0, rel=0.03)
+
+
+def test_flutter_amplitude_by_hand():
+    """A node moving at a constant 0.5 m/s on a 2 m tree, gain 4 s: A = 4 · 0.5 / 2 = 1 rad."""
+    from tree_from_video.core.tree3d import Tree3D
+    F, fps = 48, 24.0
+    nodes = np.zeros((F, 2, 3), np.float32)
+    nodes[:, 1, 2] = 2.0
+    nodes[:, 1, 0] = 0.5 * np.arange(F) / fps                   # 0.5 m/s sideways (the test is on speed only)
+    tree = Tree3D(np.array([-1, 0], np.int32), nodes, np.ones(2, np.float32), np.zeros(2, np.int32), fps)
+    beta = np.array([0.7])
+    y = leaves.flutter_angles(tree, np.array([1]), beta, 2.0, 4.0)[:, 0]
+    t = np.arange(F) / fps
+    np.testing.assert_allclose(y, 1.0 * np.sin(2 * np.pi * 2.0 * t + 0.7), atol=1e-5)
+
+
+@pytest.fixture(scope="module")
+def leafy(runs):
+    """The broad sample's reconstruction with leaf clusters (density 1 and 0.5)."""
+    from tree_from_video.core import pipeline
+    res = runs["broad"]["traced"]
+    full = pipeline.build_3d(res, pipeline.Settings())
+    s = pipeline.Settings()
+    s.leaves.density = 0.5
+    half = pipeline.build_3d(res, s)
+    return res, full, half
+
+
+def test_clusters_sit_in_the_crown_and_density_trades_polygons(leafy):
+    from tree_from_video.core.lift3d import envelope_from_meta
+    res, full, half = leafy
+    a, b = full.leaves, half.leaves
+    env = envelope_from_meta(full.meta)
+    inside = env.contains(a.pos.astype(float), tol=0.01 * full.meta["height_px"] * full.meta["metres_per_px"]).mean()
+    print(f"\n{a.count} clusters, {a.polygons} polygons (r {a.radius:.3f} m); density 0.5: {b.count} clusters, "
+          f"{b.polygons} polygons (r {b.radius:.3f} m); {100 * inside:.1f}% inside the envelope; "
+          f"dark share {a.dark.mean():.2f}")
+    assert inside >= 0.98
+    assert a.polygons == a.count * a.cards
+    assert b.count == pytest.approx(0.5 * a.count, abs=2)
+    assert 1.2 <= b.radius / a.radius <= 1.7                 # the template grows as ~1/√density
+    assert 0.35 <= a.dark.mean() <= 0.65
+    # nothing on the trunk below the crown: the lowest cluster is above the first fork's height
+    from tree_from_video.core.skeleton2d import children_lists
+    kids = children_lists(full.parents)
+    n = 0
+    while len(kids[n]) == 1:
+        n = kids[n][0]
+    fork_z = float(full.nodes3d[0, n, 2])
+    assert np.quantile(a.pos[:, 2], 0.02) >= 0.8 * fork_z
+    # each cluster rides a bone: its distance to that bone's head stays fixed over the clip
+    c = leaves.leaf_centres(full)
+    head = full.nodes3d[:, full.parents[a.node]]
+    d = np.linalg.norm(c - head, axis=-1)
+    assert np.abs(d - d[:1]).max() <= 1e-4 * full.meta["height_px"] * full.meta["metres_per_px"]
+
+
+def test_leaves_round_trip_through_npz(leafy, tmp_path):
+    from tree_from_video.core.tree3d import load_tree, save_tree
+    _, full, _ = leafy
+    save_tree(tmp_path / "t.npz", full)
+    back = load_tree(tmp_path / "t.npz")
+    for k in ("node", "pos", "axis", "colour", "dark", "flutter"):
+        np.testing.assert_array_equal(getattr(back.leaves, k), getattr(full.leaves, k))
+    np.testing.assert_array_equal(back.leaves.scales(), full.leaves.scales())
+    assert (back.leaves.radius, back.leaves.cards) == (full.leaves.radius, full.leaves.cards)
+
+
+def test_template_cards_stay_within_the_cluster_radius():
+    co, uv = leaves.cluster_template(16, 1.0, 0.55, seed=3)
+    assert co.shape == (64, 3) and uv.shape == (64, 2)
+    assert np.linalg.norm(co, axis=1).max() <= 1.0 + 1e-9
+
+
+def test_on_bark_by_hand():
+    """A vertical trunk (radius 0.1) and a thin twig (radius 0.01): a point 0.12 from the trunk's
+    axis is on its bark (margin 1.5), one 0.2 away is not; points by the thin twig never are."""
+    parents = np.array([-1, 0, 1])
+    nodes = np.array([[0.0, 0.0], [0.0, 2.0], [1.0, 2.0]])
+    radius = np.array([0.1, 0.1, 0.01])
+    pts = np.array([[0.12, 1.0], [0.2, 1.0], [0.5, 2.005]])
+    assert leaves.on_bark(pts, parents, nodes, radius).tolist() == [True, False, False]

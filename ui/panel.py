@@ -143,7 +143,12 @@ class TREE_PT_output(_TreePanel, bpy.types.Panel):
         col.prop(props, "collection_name")
         col.prop(props, "replace_existing")
         col.prop(props, "height_m")
+        col.prop(props, "twig_depth")
         col.prop(props, "build_mesh")
+        sub = col.column()
+        sub.enabled = props.build_mesh
+        sub.prop(props, "curliness", slider=True)
+        sub.prop(props, "bark")
 
 
 class TREE_PT_export(_TreePanel, bpy.types.Panel):

@@ -1,0 +1,192 @@
+"""Leaf clusters in Blender: one bone per cluster and one skinned leaf mesh.
+
+Why bones: the flutter ``A(t) sin(ωt + β)`` of every cluster is a keyed rotation of its own bone
+(child of the branch bone it sits on, about the cluster's main axis = the bone's Y), and the leaf
+cards are one mesh skinned to those bones. A skinned mesh on one armature is what FBX, glTF and
+USD (UsdSkel) all carry with its animation; per-object keys would give thousands of objects and
+shape keys do not survive USD/glTF skinning. The cost is one bone per cluster (``LeafParams.
+max_clusters`` caps it).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+import bpy
+
+from ..core import bones as bn
+from ..core.leaves import leaf_mesh
+from ..core.tree3d import Tree3D
+from . import action_api
+
+TEXTURE_SIZE = 128
+
+
+def leaf_bone_names(count: int) -> list[str]:
+    return [f"L{k:04d}" for k in range(count)]
+
+
+def add_leaf_bones(context, rig, tree: Tree3D) -> list[str]:
+    """In edit mode, one bone per leaf cluster: head at the cluster centre, tail along its main axis
+    (``radius`` long), parented (not connected) to the bone of the cluster's node. Returns the
+    bone names (``L0000``…) in cluster order."""
+    lv = tree.leaves
+    names = leaf_bone_names(lv.count)
+    parent_names = {int(c): n for c, n in zip(bn.bone_edges(tree.parents)[:, 1], bn.bone_names(tree.parents))}
+    missing = sorted(set(int(n) for n in np.unique(lv.node)) - set(parent_names))
+    if missing:
+        raise RuntimeError(f"leaf clusters sit on nodes without a bone: {missing[:5]}")
+    view_layer = context.view_layer
+    view_layer.objects.active = rig
+    bpy.ops.object.mode_set(mode="EDIT")
+    try:
+        ebones = rig.data.edit_bones
+        existing = {b.name: b for b in ebones}
+        new = [ebones.new(n) for n in names]
+        head = lv.pos.astype(np.float32)
+        tail = head + lv.axis.astype(np.float32) * np.float32(max(lv.radius, 1e-4))
+        ebones.foreach_set("head", np.concatenate([_edit_get(ebones, "head", len(existing)), head.ravel()]))
+        ebones.foreach_set("tail", np.concatenate([_edit_get(ebones, "tail", len(existing)), tail.ravel()]))
+        for eb, node in zip(new, lv.node):
+            eb.parent = existing[parent_names[int(node)]]
+            eb.use_connect = False
+            eb.use_deform = True
+    finally:
+        bpy.ops.object.mode_set(mode="OBJECT")
+    quaternion = bpy.types.PoseBone.bl_rna.properties["rotation_mode"].enum_items["QUATERNION"].value
+    rig.pose.bones.foreach_set("rotation_mode", np.full(len(rig.pose.bones), quaternion, np.int32))
+    return names
+
+
+def _edit_get(ebones, attr: str, n_old: int) -> np.ndarray:
+    """The first ``n_old`` bones' ``attr`` as a flat float32 array (foreach_set needs all bones)."""
+    flat = np.empty(len(ebones) * 3, np.float32)
+    ebones.foreach_get(attr, flat)
+    return flat[: n_old * 3]
+
+
+def flutter_quaternions(angles: np.ndarray) -> np.ndarray:
+    """``(F, S, 4)`` (w, x, y, z) rotations by ``angles (F, S)`` radians about the bone's Y axis."""
+    half = 0.5 * np.asarray(angles, np.float64)
+    q = np.zeros(half.shape + (4,))
+    q[..., 0] = np.cos(half)
+    q[..., 2] = np.sin(half)
+    return q
+
+
+def key_leaf_bones(rig, make_fcurve, tree: Tree3D, names: list[str]) -> None:
+    """Key every leaf bone's flutter at scene frames ``1..F`` (LINEAR, bulk)."""
+    q = flutter_quaternions(tree.leaves.flutter)
+    frames = np.arange(1, q.shape[0] + 1, dtype=np.float32)
+    for s, name in enumerate(names):
+        path = f'pose.bones["{bpy.utils.escape_identifier(name)}"].rotation_quaternion'
+        for i in range(4):
+            action_api.write_keys(make_fcurve(path, i, name), frames, q[:, s, i])
+
+
+def build_leaf_mesh(tree: Tree3D, rig, coll, name: str, names: list[str], material, created):
+    """The leaf cards of all clusters as one mesh (quads, UVs, the video's colour per vertex in
+    ``"Col"``), each cluster's vertices weighted 1.0 to its bone; Armature modifier, parented to
+    ``rig``. ``created`` collects the data-blocks for rollback."""
+    g = leaf_mesh(tree.leaves)
+    V = len(g["co"])
+    me = created.add(bpy.data.meshes, bpy.data.meshes.new(name))
+    me.vertices.add(V)
+    me.vertices.foreach_set("co", g["co"].astype(np.float32).ravel())
+    me.loops.add(V)
+    me.loops.foreach_set("vertex_index", np.arange(V, dtype=np.int32))
+    Q = g["quads"]
+    me.polygons.add(Q)
+    me.polygons.foreach_set("loop_start", np.arange(0, 4 * Q, 4, dtype=np.int32))
+    me.polygons.foreach_set("loop_total", np.full(Q, 4, np.int32))
+    me.update(calc_edges=True)
+    uv = me.uv_layers.new(name="UVMap")
+    uv.data.foreach_set("uv", g["uv"].astype(np.float32).ravel())
+    col = me.color_attributes.new("Col", "BYTE_COLOR", "POINT")
+    rgba = np.concatenate([g["colour"], np.ones((V, 1))], axis=1).astype(np.float32)
+    col.data.foreach_set("color_srgb", rgba.ravel())
+    me.materials.append(material)
+    me.update()
+
+    ob = created.add(bpy.data.objects, bpy.data.objects.new(name, me))
+    coll.objects.link(ob)
+    per = V // max(tree.leaves.count, 1)
+    for s, bname in enumerate(names):
+        ob.vertex_groups.new(name=bname).add(range(s * per, (s + 1) * per), 1.0, "REPLACE")
+    mod = ob.modifiers.new("Armature", "ARMATURE")
+    mod.object = rig
+    ob.parent = rig
+    return ob
+
+
+def leaf_texture_pixels(size: int = TEXTURE_SIZE) -> np.ndarray:
+    """``(size, size, 4)`` float RGBA of one leaf (stem at the bottom, tip at the top): a pointed
+    blade ``|u − ½| < 0.45 sin(π v^0.8)``, light grey with a darker midrib (the video's colour
+    multiplies it), transparent outside."""
+    v, u = np.mgrid[0:size, 0:size].astype(np.float64) / (size - 1)
+    half = 0.45 * np.sin(np.pi * np.clip(v, 0, 1) ** 0.8)
+    d = np.abs(u - 0.5)
+    alpha = np.clip((half - d) * size * 0.5, 0.0, 1.0)
+    grey = 0.85 - 0.25 * np.exp(-(d / 0.02) ** 2) * (v < 0.95) - 0.1 * (d / np.maximum(half, 1e-3)) ** 2
+    rgba = np.stack([grey, grey, grey, alpha], axis=-1)
+    rgba[..., :3] = np.clip(rgba[..., :3], 0, 1)
+    return rgba.astype(np.float32)
+
+
+def leaf_material(name: str) -> bpy.types.Material:
+    """Leaf material: a packed procedural leaf image (alpha cut-out) multiplied by the mesh's
+    ``Col`` colour attribute (the video's colour), Principled BSDF, two-sided. The caller removes
+    it (and its image, via :func:`material_images`) on failure."""
+    mat = bpy.data.materials.new(name)
+    img = None
+    try:
+        mat.diffuse_color = (0.18, 0.3, 0.1, 1.0)
+        if hasattr(mat, "surface_render_method"):          # EEVEE Next (4.2+)
+            mat.surface_render_method = "DITHERED"
+        if hasattr(mat, "blend_method"):
+            try:
+                mat.blend_method = "CLIP"
+            except TypeError:
+                pass
+        mat.use_backface_culling = False
+        img = bpy.data.images.new(f"{name} Texture", TEXTURE_SIZE, TEXTURE_SIZE, alpha=True)
+        img.pixels.foreach_set(leaf_texture_pixels().ravel())
+        img.file_format = "PNG"
+        img.pack()
+        if mat.node_tree is None:
+            mat.use_nodes = True
+        nt = mat.node_tree
+        nt.nodes.clear()
+        out = nt.nodes.new("ShaderNodeOutputMaterial")
+        bsdf = nt.nodes.new("ShaderNodeBsdfPrincipled")
+        tex = nt.nodes.new("ShaderNodeTexImage")
+        tex.image = img
+        attr = nt.nodes.new("ShaderNodeVertexColor")
+        attr.layer_name = "Col"
+        mix = nt.nodes.new("ShaderNodeMix")
+        mix.data_type = "RGBA"
+        mix.blend_type = "MULTIPLY"
+        mix.inputs["Factor"].default_value = 1.0
+        for i, node in enumerate((tex, attr, mix, bsdf, out)):
+            node.location = (260 * i - 700, 120 * ((i % 2) * 2 - 1))
+        sock = {s.identifier: s for s in mix.inputs}
+        out_sock = {s.identifier: s for s in mix.outputs}
+        link = nt.links.new
+        link(tex.outputs["Color"], sock["A_Color"])
+        link(attr.outputs["Color"], sock["B_Color"])
+        link(out_sock["Result_Color"], bsdf.inputs["Base Color"])
+        link(tex.outputs["Alpha"], bsdf.inputs["Alpha"])
+        bsdf.inputs["Roughness"].default_value = 0.6
+        link(bsdf.outputs["BSDF"], out.inputs["Surface"])
+    except BaseException:
+        bpy.data.materials.remove(mat)
+        if img is not None:
+            bpy.data.images.remove(img)
+        raise
+    return mat
+
+
+def material_images(mat) -> list:
+    """Images used by ``mat``'s node tree (to remove them with it)."""
+    if mat is None or mat.node_tree is None:
+        return []
+    return [n.image for n in mat.node_tree.nodes if n.type == "TEX_IMAGE" and n.image is not None]

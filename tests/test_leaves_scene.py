@@ -1,0 +1,161 @@
+"""Leaf clusters in Blender: one bone per cluster keyed with its flutter, one skinned leaf mesh;
+the clusters ride their branches exactly, a failed build leaves nothing, and the leaves reach
+FBX, glTF and USD animated (read back from the files)."""
+import os
+
+import bpy
+import numpy as np
+import pytest
+
+from tree_from_video.core import leaves as lv
+from tree_from_video.core import pipeline
+from tree_from_video.operators import export, leaves_build, scene_build
+
+from trees import empty_scene  # noqa: F401  (autouse fixture)
+from trees import ROOT, tree_height
+
+FRAMES = 60
+
+
+@pytest.fixture(scope="module")
+def tree():
+    folder = os.path.join(ROOT, "sample_videos", "broad")
+    s = pipeline.Settings(frames=f"0:{FRAMES}")
+    s.leaves.max_clusters = 150                    # keeps the export tests quick; placement is the same
+    res = pipeline.run(os.path.join(folder, "video.mp4"), os.path.join(folder, "outline.json"), s)
+    t = pipeline.build_3d(res, s, name="Leafy")
+    assert t.leaves is not None and t.leaves.count == 150
+    return t
+
+
+def _leaf_names(tree):
+    return leaves_build.leaf_bone_names(tree.leaves.count)
+
+
+def _rotation_angle_about(q, axis):
+    """Signed angles ``(F,)`` of quaternions ``(F, 4)`` (w, x, y, z) about ``axis``."""
+    return 2 * np.arctan2(q[:, 1:] @ axis, q[:, 0])
+
+
+def test_leaf_bones_ride_their_branches_and_flutter(tree):
+    built = scene_build.build_tree(bpy.context, tree, "Leafy")
+    rig, leaf_obj = built["armature"], built["leaves"]
+    names = _leaf_names(tree)
+    L = tree.leaves
+    assert built["leaf_polygons"] == len(leaf_obj.data.polygons) == L.count * L.cards
+    assert len(rig.data.bones) == tree.n_nodes - 1 + L.count
+    for n, node in zip(names[:20], L.node[:20]):
+        assert rig.data.bones[n].parent.name == f"B{node:03d}"
+    # every leaf vertex in exactly one group (its cluster's bone), weight 1
+    groups = {g.index: g.name for g in leaf_obj.vertex_groups}
+    per = 4 * L.cards
+    for v in list(leaf_obj.data.vertices)[:: per // 2]:
+        assert len(v.groups) == 1 and v.groups[0].weight == 1.0
+        assert groups[v.groups[0].group] == names[v.index // per]
+    centres = lv.leaf_centres(tree)
+    tol = 1e-3 * tree_height(tree)
+    mw = np.array(rig.matrix_world)
+    for frame in (1, 25, FRAMES):
+        bpy.context.scene.frame_set(frame)
+        heads = np.array([rig.pose.bones[n].head for n in names]) @ mw[:3, :3].T + mw[:3, 3]
+        err = np.abs(heads - centres[frame - 1]).max()
+        assert err <= tol, (frame, err)
+        q = np.array([rig.pose.bones[n].rotation_quaternion for n in names])
+        np.testing.assert_allclose(_rotation_angle_about(q, np.array([0.0, 1.0, 0.0])), L.flutter[frame - 1],
+                                   atol=1e-4)
+    print(f"\n{L.count} leaf bones + {tree.n_nodes - 1} branch bones, {built['leaf_polygons']} leaf polygons, "
+          f"build {built['timings']['total']:.2f} s (leaves {built['timings']['leaves']:.2f} s)")
+
+
+def test_a_failed_leaf_build_leaves_nothing(tree, monkeypatch):
+    def broken(*args, **kwargs):
+        raise RuntimeError("leaf mesh failed")
+    monkeypatch.setattr(leaves_build, "build_leaf_mesh", broken)
+    with pytest.raises(RuntimeError, match="leaf mesh failed"):
+        scene_build.build_tree(bpy.context, tree, "Leafy")
+    for coll in ("objects", "meshes", "armatures", "materials", "images", "actions"):
+        assert len(getattr(bpy.data, coll)) == 0, coll
+    assert "Leafy" not in bpy.data.collections
+
+
+def _glb_flutter(doc, binary, node):
+    from test_exports import accessor
+    anim = doc["animations"][0]
+    for c in anim["channels"]:
+        if c["target"]["node"] == node and c["target"]["path"] == "rotation":
+            q = accessor(doc, binary, anim["samplers"][c["sampler"]]["output"])
+            return q[:, [3, 0, 1, 2]]                        # glTF xyzw → wxyz
+    return None
+
+
+def test_leaves_are_in_the_gltf_fbx_and_usd_exports_animated(tree, tmp_path):
+    from test_exports import read_glb
+    built = scene_build.build_tree(bpy.context, tree, "Leafy")
+    objects = [built["armature"], built["mesh"], built["leaves"]]
+    names = _leaf_names(tree)
+    L = tree.leaves
+
+    # glTF: the leaf bones are joints of the skin, each rotation channel turns about one axis
+    # by the flutter angle (up to its constant rest offset)
+    glb = tmp_path / "tree.glb"
+    export.export_gltf(glb, objects)
+    doc, binary = read_glb(glb)
+    joints = {doc["nodes"][j]["name"]: j for j in doc["skins"][0]["joints"]}
+    assert set(names) <= set(joints)
+    worst = 0.0
+    for k in range(0, L.count, 15):
+        q = _glb_flutter(doc, binary, joints[names[k]])
+        assert q is not None and len(q) == FRAMES
+        rel = np.array([_qmul(_qconj(q[0]), qt) for qt in q])          # rotation since frame 1
+        axis = np.linalg.svd(rel[:, 1:], full_matrices=False)[2][0]
+        angle = _rotation_angle_about(rel, axis)
+        want = L.flutter[:, k] - L.flutter[0, k]
+        err = min(np.abs(angle - want).max(), np.abs(angle + want).max())   # the axis sign is free
+        worst = max(worst, err)
+    print(f"\nglTF: {len(names)} leaf joints; flutter angle error ≤ {np.degrees(worst):.4f}°")
+    assert worst <= 1e-3
+    meshes = [m["name"] for m in doc["meshes"]]
+    assert any("Leaves" in m for m in meshes)
+
+    # FBX: re-import keeps the leaf bones and the leaf mesh's groups
+    fbx = tmp_path / "tree.fbx"
+    export.export_fbx(fbx, objects)
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    bpy.ops.import_scene.fbx(filepath=str(fbx), anim_offset=0)
+    rig = next(ob for ob in bpy.context.scene.objects if ob.type == "ARMATURE")
+    assert set(names) <= {b.name for b in rig.data.bones}
+    leaf_mesh = next(ob for ob in bpy.context.scene.objects if ob.type == "MESH" and "Leaves" in ob.name)
+    assert len(leaf_mesh.data.polygons) == L.count * L.cards
+    assert set(names) <= {g.name for g in leaf_mesh.vertex_groups}
+
+    # USD (where Blender has it): the leaf bones are joints of the skeleton, animated
+    if not export.has_usd():
+        print("USD: this Blender has no USD exporter (the clear error is tested in test_exports)")
+        return
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    built = scene_build.build_tree(bpy.context, tree, "Leafy")
+    usd = tmp_path / "tree.usda"
+    export.export_usd(usd, [built["armature"], built["mesh"], built["leaves"]])
+    try:
+        from pxr import Usd, UsdSkel
+    except ImportError:
+        text = usd.read_text()
+        assert all(n in text for n in names[:10])
+        return
+    stage = Usd.Stage.Open(str(usd))
+    skel = next(UsdSkel.Skeleton(p) for p in stage.Traverse() if p.IsA(UsdSkel.Skeleton))
+    anim = next(UsdSkel.Animation(p) for p in stage.Traverse() if p.IsA(UsdSkel.Animation))
+    joints = [str(j).rsplit("/", 1)[-1] for j in skel.GetJointsAttr().Get()]
+    assert set(names) <= set(joints)
+    assert len(anim.GetRotationsAttr().GetTimeSamples()) == FRAMES
+
+
+def _qconj(q):
+    return np.array([q[0], -q[1], -q[2], -q[3]])
+
+
+def _qmul(a, b):
+    w1, x1, y1, z1 = a
+    w2, x2, y2, z2 = b
+    return np.array([w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2, w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
+                     w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2, w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2])
