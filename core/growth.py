@@ -227,10 +227,9 @@ def grow_2d(model: SpeciesModel, region: Region2D, p: GrowParams, rng: np.random
             live.pop(k)
             continue
         need = n_seg(ll[0]) + n_seg(ll[1])
-        if total + need > budget:
-            live.pop(k)
+        if total + need > budget:            # stop here: skipping this pair would favour short ones
             stopped = "node budget reached"
-            continue
+            break
         dn = np.minimum(_seg_dist(attr, np.repeat(pos[i][None], len(phi), 0), ends[0]),
                         _seg_dist(attr, np.repeat(pos[i][None], len(phi), 0), ends[1]))   # (L, K)
         gain = np.maximum(d_cur[None] - dn, 0.0).sum(1) * valid                       # E (Eq. 5–6)

@@ -448,12 +448,31 @@ def spectral_features(parents: np.ndarray, rot: np.ndarray, fps: float,
     return out
 
 
-def dominant_frequencies(tree, keep: float = KEEP_FRACTION) -> np.ndarray:
-    """``(3,)`` Hz per rotation axis: the kept bin with the largest energy ratio averaged over the
-    moving nodes (every node counts equally) — how the species model defines "dominant"."""
+def energy_spectrum(tree, keep: float = KEEP_FRACTION) -> tuple[np.ndarray, np.ndarray]:
+    """``(freqs_hz (K,), E (3, K))``: per rotation axis the energy ratios ``|X_k|² / Σ|X|²``
+    averaged over the moving nodes (every node counts equally) of a :class:`~.tree3d.Tree3D`."""
     rot = node_rotations(tree.parents, np.asarray(tree.nodes3d, np.float64))
-    return np.array([sf.freqs_hz[int(np.argmax(sf.energy.mean(0)))] if len(sf.energy) else 0.0
-                     for sf in spectral_features(tree.parents, rot, tree.fps, keep)])
+    sfs = spectral_features(tree.parents, rot, tree.fps, keep)
+    E = np.array([sf.energy.mean(0) if len(sf.energy) else np.zeros(len(sf.freqs_hz)) for sf in sfs])
+    return sfs[0].freqs_hz, E
+
+
+def spectrum_peaks(e: np.ndarray, n_peaks: int = 2) -> np.ndarray:
+    """Indices ``(n_peaks,)`` (ascending) of the ``n_peaks`` highest local maxima of ``e (K,)``
+    (an end bin counts when it is above its one neighbour); fewer maxima repeat the highest."""
+    r = np.concatenate([[-np.inf], e, [-np.inf]])
+    lm = np.flatnonzero((r[1:-1] >= r[:-2]) & (r[1:-1] >= r[2:]))
+    top = lm[np.argsort(e[lm])[::-1][:n_peaks]]
+    top = np.concatenate([top, np.repeat(top[:1], n_peaks - len(top))])
+    return np.sort(top)
+
+
+def dominant_frequencies(tree, n_peaks: int = 2, keep: float = KEEP_FRACTION) -> np.ndarray:
+    """``(3, n_peaks)`` Hz per rotation axis: the ``n_peaks`` highest peaks (ascending frequency)
+    of the tree's mean energy-ratio spectrum (:func:`energy_spectrum`) — e.g. the slow gust and
+    the branch sway of the examples."""
+    freqs, E = energy_spectrum(tree, keep)
+    return np.array([freqs[spectrum_peaks(e, n_peaks)] for e in E])
 
 
 def shift_tuple(u: np.ndarray) -> np.ndarray:
@@ -490,6 +509,10 @@ class AxisMotion:
     def dominant_hz(self) -> float:
         """Frequency (Hz) of the largest mean energy ratio."""
         return float(self.freqs_hz[int(np.argmax(self.energy))])
+
+    def peaks_hz(self, n_peaks: int = 2) -> np.ndarray:
+        """The ``n_peaks`` highest peaks (Hz, ascending) of the mean energy ratios."""
+        return self.freqs_hz[spectrum_peaks(self.energy / self.energy.sum(), n_peaks)]
 
 
 @dataclass
@@ -709,6 +732,13 @@ def fit_species(tree, name: str, keep: float = KEEP_FRACTION) -> SpeciesModel:
 
 # ============================================================================ files
 
+def dumps_species(model: SpeciesModel) -> str:
+    """Indented JSON with every list of numbers on one line (readable and diffable)."""
+    import re
+    text = json.dumps(model.to_json(), indent=1, ensure_ascii=False)
+    return re.sub(r"\[\s*([-0-9.eE,\s]*?)\s*\]", lambda m: "[" + re.sub(r"\s+", " ", m.group(1)) + "]", text)
+
+
 def save_species(path: str | os.PathLike, model: SpeciesModel) -> None:
     """Write ``model`` as indented JSON to ``path`` atomically (temporary file + rename)."""
     from .model import publish
@@ -717,8 +747,7 @@ def save_species(path: str | os.PathLike, model: SpeciesModel) -> None:
     fd, tmp = tempfile.mkstemp(prefix=".tmp-", suffix=".json", dir=folder)
     try:
         with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            json.dump(model.to_json(), fh, indent=1)
-            fh.write("\n")
+            fh.write(dumps_species(model) + "\n")
         publish(tmp, path)
     except BaseException:
         if os.path.exists(tmp):
@@ -760,6 +789,7 @@ def model_summary(model: SpeciesModel) -> dict:
     return {"angles_mean": (model.angles / model.angles.sum()).round(3).tolist(),
             "lengths_mean": (model.lengths / model.lengths.sum()).round(3).tolist(),
             "dominant_hz": [round(m.dominant_hz, 3) for m in model.motion],
+            "peaks_hz": [m.peaks_hz().round(3).tolist() for m in model.motion],
             "conifer": model.conifer}
 
 

@@ -1,0 +1,62 @@
+"""Fit the species library shipped in species/*.json from the sample videos.
+
+    .venv/bin/python scripts/make_species.py [--out species] [--work DIR]
+
+broad and sparse are the committed samples (sample_videos/); conifer is generated with
+tests/samples.py (variant "conifer") into DIR and lifted with the conifer setting (leader kept).
+Each is reconstructed with the default settings (pipeline.run + build_3d, 10 m tall), then
+pgm.fit_species writes <name>.json.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import os
+import sys
+import tempfile
+import time
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+PACKAGE = "tree_from_video"
+
+
+def _load_package():
+    if PACKAGE not in sys.modules:
+        spec = importlib.util.spec_from_file_location(PACKAGE, os.path.join(ROOT, "__init__.py"),
+                                                      submodule_search_locations=[ROOT])
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[PACKAGE] = module
+        spec.loader.exec_module(module)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--out", default=os.path.join(ROOT, "species"))
+    ap.add_argument("--work", default=None, help="folder for the generated conifer sample")
+    args = ap.parse_args(argv)
+    _load_package()
+    sys.path.insert(0, os.path.join(ROOT, "tests"))
+    from tree_from_video.core import pgm, pipeline
+    from samples import committed, generate
+    work = args.work or tempfile.mkdtemp(prefix="species-")
+    os.makedirs(args.out, exist_ok=True)
+    for name in ("broad", "sparse", "conifer"):
+        t0 = time.time()
+        s = pipeline.Settings()
+        if name == "conifer":
+            folder = generate("conifer", os.path.join(work, "conifer"))
+            s.lift.conifer = True
+        else:
+            folder = committed(name)
+        res = pipeline.run(os.path.join(folder, "video.mp4"), os.path.join(folder, "outline.json"), s)
+        tree = pipeline.build_3d(res, s, name=name)
+        model = pgm.fit_species(tree, name)
+        path = os.path.join(args.out, f"{name}.json")
+        pgm.save_species(path, model)
+        print(f"{name}: {tree.n_nodes} nodes, {tree.n_frames} frames -> {path} "
+              f"({time.time() - t0:.1f} s) {pgm.model_summary(model)}", flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
