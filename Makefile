@@ -41,6 +41,7 @@ test-extension: setup
 bench: setup
 	$(PY) benchmarks/bench_skeleton.py
 	$(PY) benchmarks/bench_motion.py
+	$(PY) benchmarks/bench_leaves.py
 
 clean:
 	rm -rf out dist .pytest_cache

@@ -59,12 +59,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--solver", choices=("probabilistic", "deterministic"), default="probabilistic",
                    help="3D motion solver (default probabilistic, paper §4; deterministic: sphere/line-of-sight baseline)")
     p.add_argument("--height", type=float, default=10.0, help="tree height in the scene, metres (default 10)")
-    p.add_argument("--twigs", type=int, default=0, metavar="DEPTH",
-                   help="generations of twigs copied from the tree's own forks, 0..6 (default 0: none; 2 looks natural)")
-    p.add_argument("--curliness", type=float, default=0.0,
-                   help="bend the branch tubes along minimum-jerk curves, 0..1 (default 0: straight)")
-    p.add_argument("--bark", choices=("none", "smooth", "rough"), default="none",
-                   help="bark relief on the tubes: smooth (<= 0.5%% of the radius) or rough (1-5%%) (default none)")
+    p.add_argument("--twigs", type=int, default=2, metavar="DEPTH",
+                   help="generations of twigs copied from the tree's own forks, 0..6 (default 2; 0: none)")
+    p.add_argument("--curliness", type=float, default=0.3,
+                   help="bend the branch tubes along minimum-jerk curves, 0..1 (default 0.3; 0: straight)")
+    p.add_argument("--bark", choices=("none", "smooth", "rough"), default="rough",
+                   help="bark relief on the tubes: smooth (<= 0.5%% of the radius) or rough (1-5%%) (default rough)")
+    p.add_argument("--no-leaves", action="store_true", help="bare branches: no leaf clusters")
+    p.add_argument("--leaf-density", type=float, default=1.0,
+                   help="share of the leaf seeds kept, (0, 1] (default 1): fewer, larger clusters, fewer polygons")
+    p.add_argument("--leaf-cards", type=int, default=16, help="leaf cards (quads) per cluster (default 16)")
+    p.add_argument("--flutter-hz", type=float, default=2.0, help="leaf flutter frequency in Hz (default 2)")
+    p.add_argument("--leaf-image", help="image of one leaf (alpha = shape) instead of the procedural leaf")
     p.add_argument("--fbx", action="store_true", help="write DIR/tree.fbx (armature + skinned mesh, baked animation)")
     p.add_argument("--usd", action="store_true", help="write DIR/tree.usdc (needs a Blender built with USD)")
     p.add_argument("--gltf", action="store_true", help="write DIR/tree.glb (glTF binary, animation from t = 0)")
@@ -135,6 +141,14 @@ def main(argv: list[str] | None = None) -> int:
         settings.motion.solver = args.solver
         settings.twigs.depth = args.twigs
         settings.curliness, settings.bark = args.curliness, args.bark
+        if args.no_leaves:
+            settings.leaves = None
+        else:
+            settings.leaves.density, settings.leaves.cards = args.leaf_density, args.leaf_cards
+            settings.leaves.flutter_hz = args.flutter_hz
+        if args.leaf_image and not os.path.isfile(args.leaf_image):
+            raise errors.InputError(f"leaf image '{args.leaf_image}' does not exist; give an image file or drop "
+                                    "--leaf-image for the procedural leaf")
         pipeline.check_settings(settings)
         _check_out(args.out, names, args.force, errors.InputError)
         outputs = _blender_outputs(pkg, errors.InputError) if blender_files else None
@@ -155,13 +169,13 @@ def main(argv: list[str] | None = None) -> int:
         tree3d.save_tree(os.path.join(args.out, "tree3d.npz"), tree)
         if args.npz:
             arrays = model.skeleton_arrays(res.skeleton, meta)
-            arrays["nodes3d"] = tree.nodes3d
+            arrays["nodes3d"] = tree.nodes3d[:, :res.skeleton.n_nodes]     # twigs are appended after
             model.atomic_savez(os.path.join(args.out, "result.npz"), **arrays)
         overlay.write_overlays(res.info, res.start, res.skeleton, res.tracks,
                                os.path.join(args.out, "overlay.png"),
                                None if args.no_video else os.path.join(args.out, "overlay.mp4"), cb)
         if outputs is not None:
-            outputs.write_outputs(tree, args.out, wanted, overwrite=args.force,
+            outputs.write_outputs(tree, args.out, wanted, overwrite=args.force, leaf_image=args.leaf_image,
                                   report=lambda m: sys.stderr.write(m + "\n"))
         sys.stderr.write(f"done: {res.skeleton.n_nodes} nodes, {res.tracks.points.shape[1]} tracks, "
                          f"{res.tracks.n_frames} frames -> {args.out}\n")

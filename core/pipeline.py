@@ -75,6 +75,9 @@ def check_settings(s: Settings) -> None:
         raise InputError(f"twig depth {s.twigs.depth} out of range; use 0..6 (0: no twigs)")
     from .branch_mesh import MeshParams, check_params
     check_params(MeshParams(curliness=s.curliness, bark=s.bark))
+    if s.leaves is not None:
+        from .leaves import check_leaf_params
+        check_leaf_params(s.leaves)
 
 
 def track_video(info: VideoInfo, outline: Outline, start: int, stop: int, params: TrackParams,

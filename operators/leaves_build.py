@@ -132,10 +132,37 @@ def leaf_texture_pixels(size: int = TEXTURE_SIZE) -> np.ndarray:
     return rgba.astype(np.float32)
 
 
-def leaf_material(name: str) -> bpy.types.Material:
-    """Leaf material: a packed procedural leaf image (alpha cut-out) multiplied by the mesh's
-    ``Col`` colour attribute (the video's colour), Principled BSDF, two-sided. The caller removes
-    it (and its image, via :func:`material_images`) on failure."""
+def leaf_image(name: str, path: str | None):
+    """The leaf texture: the user's image at ``path`` (packed into the .blend), or a procedural
+    leaf (:func:`leaf_texture_pixels`). Raises InputError for an image Blender cannot read."""
+    if path:
+        from ..core.errors import InputError
+        try:
+            img = bpy.data.images.load(path, check_existing=False)
+        except RuntimeError as exc:
+            raise InputError(f"cannot read the leaf image '{path}' ({exc}); pick a PNG/JPEG/TIFF with the "
+                             "leaf's shape in its alpha channel, or clear the field") from None
+        if img.size[0] == 0 or img.size[1] == 0:
+            bpy.data.images.remove(img)
+            raise InputError(f"'{path}' is not an image Blender can read; pick a PNG/JPEG/TIFF leaf, or clear "
+                             "the field for the procedural leaf")
+        try:
+            img.pack()
+        except RuntimeError:
+            bpy.data.images.remove(img)
+            raise
+        return img
+    img = bpy.data.images.new(f"{name} Texture", TEXTURE_SIZE, TEXTURE_SIZE, alpha=True)
+    img.pixels.foreach_set(leaf_texture_pixels().ravel())
+    img.file_format = "PNG"
+    img.pack()
+    return img
+
+
+def leaf_material(name: str, image_path: str | None = None) -> bpy.types.Material:
+    """Leaf material: the leaf image (``image_path`` or procedural, packed; alpha cut-out)
+    multiplied by the mesh's ``Col`` colour attribute (the video's colour), Principled BSDF,
+    two-sided. The caller removes it (and its image, via :func:`material_images`) on failure."""
     mat = bpy.data.materials.new(name)
     img = None
     try:
@@ -148,10 +175,7 @@ def leaf_material(name: str) -> bpy.types.Material:
             except TypeError:
                 pass
         mat.use_backface_culling = False
-        img = bpy.data.images.new(f"{name} Texture", TEXTURE_SIZE, TEXTURE_SIZE, alpha=True)
-        img.pixels.foreach_set(leaf_texture_pixels().ravel())
-        img.file_format = "PNG"
-        img.pack()
+        img = leaf_image(name, image_path)
         if mat.node_tree is None:
             mat.use_nodes = True
         nt = mat.node_tree

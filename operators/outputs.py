@@ -34,7 +34,7 @@ def check_wanted(wanted: dict) -> None:
 
 
 def write_outputs(tree: Tree3D, out_dir: str, wanted: dict, overwrite: bool = False,
-                  fresh_scene: bool = True, report=print) -> dict:
+                  fresh_scene: bool = True, report=print, leaf_image: str | None = None) -> dict:
     """Build ``tree`` in the scene and write the ``wanted`` files into ``out_dir``.
 
     ``fresh_scene`` starts from an empty scene (batch runs); returns {format: path}.
@@ -46,8 +46,8 @@ def write_outputs(tree: Tree3D, out_dir: str, wanted: dict, overwrite: bool = Fa
     if fresh_scene:
         bpy.ops.wm.read_factory_settings(use_empty=True)
     context = bpy.context
-    built = build_tree(context, tree, tree.name, replace=True)
-    objects = [o for o in (built["armature"], built["mesh"]) if o is not None]
+    built = build_tree(context, tree, tree.name, replace=True, leaf_image=leaf_image)
+    objects = [o for o in (built["armature"], built["mesh"], built["leaves"]) if o is not None]
     written = {}
     if wanted.get("fbx"):
         written["fbx"] = export.export_fbx(os.path.join(out_dir, FORMATS["fbx"]), objects, overwrite=overwrite)

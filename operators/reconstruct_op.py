@@ -50,6 +50,12 @@ def settings_from(props) -> pipeline.Settings:
     s.motion.max_total = props.max_total
     s.twigs.depth = props.twig_depth
     s.curliness, s.bark = props.curliness, props.bark
+    if props.build_leaves:
+        s.leaves.density, s.leaves.cards = props.leaf_density, props.leaf_cards
+        s.leaves.max_clusters = props.max_leaf_clusters
+        s.leaves.flutter_hz, s.leaves.flutter_gain = props.flutter_hz, props.flutter_gain
+    else:
+        s.leaves = None
     return s
 
 
@@ -189,21 +195,27 @@ class TREE_OT_reconstruct(_JobOperator, bpy.types.Operator):
         name = props.collection_name.strip() or "Tree from Video"
         if bpy.data.collections.get(name) is not None and not props.replace_existing:
             raise InputError(f"a collection named '{name}' exists; tick Replace Existing or change the name")
+        if props.build_leaves and props.leaf_image and not os.path.isfile(bpy.path.abspath(props.leaf_image)):
+            raise InputError(f"leaf image '{props.leaf_image}' does not exist; pick an image file or clear the field "
+                             "for the procedural leaf")
         return Job(make_work(video, outline, settings_from(props), name))
 
     def done(self, context, result):
         props = context.scene.tree_video
         res, tree = result
         try:
-            built = build_tree(context, tree, tree.name, replace=props.replace_existing, mesh=props.build_mesh)
+            built = build_tree(context, tree, tree.name, replace=props.replace_existing, mesh=props.build_mesh,
+                               leaf_image=bpy.path.abspath(props.leaf_image) if props.leaf_image else None)
         except InputError as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
         clip_overlay.store(res)
+        props.leaf_polygons = built["leaf_polygons"]
         for w in res.warnings:
             self.report({"WARNING"}, w)
+        leaves = f", {built['leaf_polygons']:,} leaf polygons" if built["leaf_polygons"] else ""
         self.report({"INFO"}, f"{len(built['armature'].data.bones)} bones × {tree.n_frames} frames in "
-                              f"'{tree.name}'")
+                              f"'{tree.name}'{leaves}")
         return {"FINISHED"}
 
 

@@ -24,7 +24,8 @@ MAX_NAME = 63
 
 
 def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = False,
-               mesh: bool = True, sides: int = 8, leaves: bool = True, curliness: float | None = None,
+               mesh: bool = True, sides: int = 8, leaves: bool = True,
+               leaf_image: str | None = None, curliness: float | None = None,
                bark: str | None = None) -> dict:
     """Create the animated tree in a new collection ``collection_name`` under the scene collection.
 
@@ -37,7 +38,8 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
     :mod:`core.branch_mesh`, None: from ``tree.meta["mesh"]``, see :func:`mesh_params`) and a bark
     material ``"<name> Bark"``; with ``leaves`` and
     ``tree.leaves``, one bone per leaf cluster (``"L0000"``…, child of its branch bone, keyed with
-    its flutter) and a skinned leaf mesh ``"<name> Leaves"`` with material ``"<name> Leaf"``.
+    its flutter) and a skinned leaf mesh ``"<name> Leaves"`` with material ``"<name> Leaf"``
+    (the leaf image ``leaf_image``, packed, or a procedural leaf).
 
     An existing collection of that name raises :class:`InputError` unless ``replace``; then its
     objects and their data are removed once the new tree is complete (a failed build leaves the
@@ -94,7 +96,7 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
         leaf_obj = leaf_mat = None
         if leaf_names:
             t = time.perf_counter()
-            leaf_mat = created.add(bpy.data.materials, leaves_build.leaf_material(names["leaf_material"]))
+            leaf_mat = created.add(bpy.data.materials, leaves_build.leaf_material(names["leaf_material"], leaf_image))
             for img in leaves_build.material_images(leaf_mat):
                 created.add(bpy.data.images, img)
             leaf_obj = leaves_build.build_leaf_mesh(tree, rig, coll, names["leaves"], leaf_names, leaf_mat, created)

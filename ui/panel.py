@@ -149,6 +149,16 @@ class TREE_PT_output(_TreePanel, bpy.types.Panel):
         sub.enabled = props.build_mesh
         sub.prop(props, "curliness", slider=True)
         sub.prop(props, "bark")
+        col.prop(props, "build_leaves")
+        sub = col.column()
+        sub.enabled = props.build_leaves
+        sub.prop(props, "leaf_density", slider=True)
+        sub.prop(props, "leaf_cards")
+        sub.prop(props, "flutter_hz", text="Flutter (Hz)")
+        sub.prop(props, "flutter_gain")
+        sub.prop(props, "leaf_image")
+        if props.leaf_polygons:
+            sub.label(text=f"Last tree: {props.leaf_polygons:,} leaf polygons", icon="INFO")
 
 
 class TREE_PT_export(_TreePanel, bpy.types.Panel):

@@ -2,11 +2,13 @@
 (``window_manager.tree_video_status``). Defaults reproduce the paper's settings."""
 import bpy
 
+from ..core.leaves import LeafParams
 from ..core.lift3d import LiftParams
 from ..core.motion import MotionParams
 
 _M = MotionParams()
 _L = LiftParams()
+_F = LeafParams()
 
 
 class TreeVideoSettings(bpy.types.PropertyGroup):
@@ -82,6 +84,26 @@ class TreeVideoSettings(bpy.types.PropertyGroup):
                ("smooth", "Smooth", "Bark relief up to 0.5% of the radius (beech, birch)"),
                ("rough", "Rough", "Bark relief of 1-5% of the radius (oak, pine)")],
         description="Relief of the bark around the branch tubes")
+    build_leaves: bpy.props.BoolProperty(name="Leaves", default=True,
+                                         description="Leaf clusters where the video shows foliage (seeds: Harris corners "
+                                                     "of frame 1), riding their branches with their own flutter")
+    leaf_density: bpy.props.FloatProperty(name="Leaf Density", default=_F.density, min=0.02, max=1.0, subtype="FACTOR",
+                                          description="Share of the leaf seeds kept: fewer, larger clusters and fewer "
+                                                      "polygons (polygons = clusters × cards)")
+    leaf_cards: bpy.props.IntProperty(name="Leaves per Cluster", default=_F.cards, min=1, max=128,
+                                      description="Leaf cards (one quad each) in every cluster")
+    max_leaf_clusters: bpy.props.IntProperty(name="Max Clusters", default=_F.max_clusters, min=1, max=20000,
+                                             description="Upper bound on leaf clusters (each is one bone)")
+    flutter_hz: bpy.props.FloatProperty(name="Flutter", default=_F.flutter_hz, min=0.0, max=12.0, unit="NONE",
+                                        description="Leaf flutter frequency ω/2π in Hz (kept below half the frame rate)")
+    flutter_gain: bpy.props.FloatProperty(name="Flutter Strength", default=_F.flutter_gain, min=0.0, max=50.0,
+                                          description="Flutter amplitude per branch speed, seconds: A = strength × "
+                                                      "speed / tree height (radians)")
+    leaf_image: bpy.props.StringProperty(name="Leaf Image", subtype="FILE_PATH",
+                                         description="Image of one leaf (alpha = shape, stem at the bottom); empty: "
+                                                     "a procedural leaf")
+    leaf_polygons: bpy.props.IntProperty(name="Leaf Polygons", default=0, min=0,
+                                         description="Leaf polygons of the last tree built (read only)")
     collection_name: bpy.props.StringProperty(name="Collection", default="Tree from Video",
                                               description="Collection that holds the tree's armature and mesh")
     replace_existing: bpy.props.BoolProperty(name="Replace Existing", default=False,

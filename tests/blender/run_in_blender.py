@@ -1,6 +1,6 @@
 """Run part of the test suite inside a real Blender: ``blender -b --python tests/blender/run_in_blender.py``.
 
-Exits Blender with pytest's exit code (5 — nothing collected — counts as failure).
+``-- tests/test_x.py [pytest args]`` runs only those. Exits Blender with pytest's exit code (5 — nothing collected — counts as failure).
 """
 import os
 import sys
@@ -24,7 +24,11 @@ args = ["-q", "-p", "no:cacheprovider", "-o", "cache_dir=/tmp/tfv_pytest_cache",
         os.path.join(TESTS, "test_units.py"), os.path.join(TESTS, "test_register.py"), os.path.join(TESTS, "test_reconstruct_op.py"),
         os.path.join(TESTS, "test_sample_run.py"), os.path.join(TESTS, "test_scene.py"),
         os.path.join(TESTS, "test_exports.py"), os.path.join(TESTS, "test_annotation_outline.py"),
-        os.path.join(TESTS, "test_twigs.py"), os.path.join(TESTS, "test_branch_mesh.py")]
+        os.path.join(TESTS, "test_twigs.py"), os.path.join(TESTS, "test_branch_mesh.py"),
+        os.path.join(TESTS, "test_leaves_scene.py")]
+chosen = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []   # e.g. -- tests/test_x.py -s
+if chosen:
+    args = args[:5] + chosen
 code = int(pytest.main(args))
 if code == 5:
     code = 1
