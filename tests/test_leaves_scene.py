@@ -159,3 +159,23 @@ def _qmul(a, b):
     w2, x2, y2, z2 = b
     return np.array([w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2, w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
                      w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2, w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2])
+
+
+def test_a_users_leaf_image_is_packed_and_a_bad_one_is_refused(tree, tmp_path):
+    import cv2
+    from tree_from_video.core.errors import InputError
+    img = np.zeros((32, 16, 4), np.uint8)
+    img[4:28, 4:12] = (40, 160, 60, 255)                  # BGRA: a green blade
+    good = tmp_path / "leaf.png"
+    cv2.imwrite(str(good), img)
+    built = scene_build.build_tree(bpy.context, tree, "Leafy", leaf_image=str(good))
+    mat = built["leaves"].data.materials[0]
+    images = leaves_build.material_images(mat)
+    assert len(images) == 1 and tuple(images[0].size) == (16, 32) and images[0].packed_file is not None
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    bad = tmp_path / "leaf.png.txt"
+    bad.write_text("not an image")
+    with pytest.raises(InputError, match="leaf image|not an image"):
+        scene_build.build_tree(bpy.context, tree, "Leafy", leaf_image=str(bad))
+    for coll in ("objects", "meshes", "armatures", "materials", "images", "actions"):
+        assert len(getattr(bpy.data, coll)) == 0, coll
