@@ -296,9 +296,9 @@ def _subdivide(par: np.ndarray, pos: np.ndarray, region: Region2D, n_seg, bend: 
 
 
 def lift_grown(g: Grown2D, region: Region2D, conifer: bool, p: GrowParams,
-               progress: ProgressFn | None = None):
+               progress: ProgressFn | None = None, env: Envelope | None = None):
     """3D rest pose ``(N, 3)`` metres of the 2D tree by :func:`.lift3d.lift` on a raster of Ω'
-    ``RASTER_HEIGHT_PX`` tall; returns (nodes, Lift)."""
+    ``RASTER_HEIGHT_PX`` tall, depths then clipped into ``env``; returns (nodes, Lift)."""
     H = max(region.height(), float(g.pos[:, 1].max()), 1e-6)
     k = RASTER_HEIGHT_PX / H                                       # px per metre
     poly = envelope_polygon_of_region(region)
@@ -317,6 +317,12 @@ def lift_grown(g: Grown2D, region: Region2D, conifer: bool, p: GrowParams,
     lifted = lift(skel, Outline(poly_px.astype(np.float32), mask), lp, progress)
     nodes = lifted.nodes / k                                       # plane frame px → metres
     nodes[:, [0, 2]] = g.pos                                       # exact 2D positions
+    if env is not None:
+        # the push keeps nodes inside the raster's envelope; where Ω's radius changes fast with
+        # height (crown over trunk) a row of rounding can leave a node a little outside the true
+        # one — pull its depth back to the surface
+        lim = env.depth_limit(nodes)
+        nodes[:, 1] = np.clip(nodes[:, 1], -lim, lim)
     return nodes, lifted
 
 
@@ -354,7 +360,7 @@ def grow_tree(model: SpeciesModel, envelope: Envelope, params: GrowParams | None
     region = region_of(env)
     report(progress, "growing", 0.0)
     g = grow_2d(model, region, p, rng_grow, sub_progress(progress, 0.0, 0.4))
-    rest, lifted = lift_grown(g, region, conifer, p, sub_progress(progress, 0.4, 0.85))
+    rest, lifted = lift_grown(g, region, conifer, p, sub_progress(progress, 0.4, 0.85), env)
     report(progress, "animating", 0.85)
     phase = None if p.tree_phase is None else np.asarray(p.tree_phase, float)
     rot = sample_rotations(model, g.parents, rest, n_frames, fps, rng_sway, p.time_offset_s, phase)

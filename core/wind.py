@@ -88,7 +88,10 @@ def audio_envelope(path: str | os.PathLike, fps: float, n_frames: int, smooth_s:
     if not fps > 0:
         raise InputError(f"frame rate {fps} is not positive")
     rate, x = read_wav(path)
-    return envelope_of_samples(x, rate, fps, n_frames, smooth_s)
+    try:
+        return envelope_of_samples(x, rate, fps, n_frames, smooth_s)
+    except InputError as exc:
+        raise InputError(f"audio file '{os.fspath(path)}': {exc}") from None
 
 
 def gain_curve(n_frames: int, wind: float = 1.0, audio: np.ndarray | None = None) -> np.ndarray:

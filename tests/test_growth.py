@@ -1,0 +1,265 @@
+"""Generated trees (paper §5.3): inside Ω', feature statistics like the model, determinism, motion
+frequencies, wind and audio, Tree3D conventions, speed."""
+import math
+import time
+
+import cv2
+import numpy as np
+import pytest
+from scipy.io import wavfile
+
+from tree_from_video.core import bones, envelopes, growth, pgm, wind
+from tree_from_video.core.errors import Cancelled, InputError
+from tree_from_video.core.lift3d import envelope_from_meta
+from tree_from_video.core.skeleton2d import branching_level
+from tree_from_video.core.tree3d import pipe_radii
+
+from generation_data import source_model, source_tree
+
+
+@pytest.fixture(scope="module")
+def model():
+    return source_model("broad")
+
+
+def _inside_2d(poly: np.ndarray, pts: np.ndarray, tol: float) -> np.ndarray:
+    c = poly.astype(np.float32).reshape(-1, 1, 2)
+    return np.array([cv2.pointPolygonTest(c, (float(x), float(z)), True) >= -tol for x, z in pts])
+
+
+ENVELOPES = ["source", "triangle", "circle", "pentagon", "heart"]
+
+
+@pytest.mark.parametrize("shape", ENVELOPES)
+def test_all_nodes_inside_envelope(model, shape):
+    env = envelope_from_meta(source_tree("broad").meta) if shape == "source" else envelopes.topiary(shape, 8.0)
+    poly = envelopes.envelope_polygon(env)
+    H = float(np.max(env.z))
+    rates, rates_moving = [], []
+    for seed in range(3):
+        still = growth.grow_tree(model, env, growth.GrowParams(seed=seed, wind=0.0, n_frames=2))
+        rest = still.nodes3d[0].astype(float)
+        in2d = _inside_2d(poly, rest[:, [0, 2]], 0.002 * H)
+        in3d = env.contains(rest, tol=0.002 * H)
+        rates.append(min(in2d.mean(), in3d.mean()))
+        moving = growth.grow_tree(model, env, growth.GrowParams(seed=seed, n_frames=60))
+        P = moving.nodes3d.reshape(-1, 3).astype(float)
+        rates_moving.append(_inside_2d(poly, P[::7, [0, 2]], 0.02 * H).mean())
+        assert still.n_nodes >= 100
+    print(f"{shape}: inside rate at rest {np.round(rates, 4)}, while swaying (2% slack) {np.round(rates_moving, 4)}")
+    assert min(rates) == 1.0
+    assert min(rates_moving) >= 0.99
+
+
+def _features(model, env, seeds, **kw):
+    A, L = [], []
+    for seed in seeds:
+        t = growth.grow_tree(model, env, growth.GrowParams(seed=seed, wind=0.0, n_frames=2, **kw))
+        f = pgm.bifurcation_features(t.parents, t.nodes3d[0])
+        A.append(f.angles)
+        L.append(f.lengths)
+    return np.concatenate(A), np.concatenate(L)
+
+
+def test_feature_distributions_match_the_model(model):
+    """50 trees: mean and spread of ⟨θ⟩ and ⟨L⟩ close to the model's Dirichlets, and closer to
+    them than to another species' (sparse: a shorter side branch, a narrower fork)."""
+    env = envelope_from_meta(source_tree("broad").meta)
+    A, L = _features(model, env, range(50))
+    rng = np.random.default_rng(0)
+    MA, ML = rng.dirichlet(model.angles, 20000), rng.dirichlet(model.lengths, 20000)
+    dA, dL = np.abs(A.mean(0) - MA.mean(0)), np.abs(L.mean(0) - ML.mean(0))
+    rA, rL = A.std(0) / MA.std(0), L.std(0) / ML.std(0)
+    print(f"{len(A)} bifurcations in 50 trees\n angles gen {A.mean(0).round(3)}±{A.std(0).round(3)} "
+          f"model {MA.mean(0).round(3)}±{MA.std(0).round(3)}\n lengths gen {L.mean(0).round(3)}±{L.std(0).round(3)} "
+          f"model {ML.mean(0).round(3)}±{ML.std(0).round(3)}")
+    assert len(A) >= 1500
+    assert dA.max() <= 0.03 and dL.max() <= 0.07
+    assert np.all((rA > 0.75) & (rA < 1.4)) and np.all((rL > 0.75) & (rL < 1.4))
+    # the Dirichlet log-likelihood of the generated features is higher under the own model
+    other = pgm.load_species(pgm.species_library()["sparse"])
+    mlA, mlL = np.log(np.maximum(A, 1e-12)).mean(0), np.log(np.maximum(L, 1e-12)).mean(0)
+    own = pgm.dirichlet_loglik(model.angles, mlA) + pgm.dirichlet_loglik(model.lengths, mlL)
+    alt = pgm.dirichlet_loglik(other.angles, mlA) + pgm.dirichlet_loglik(other.lengths, mlL)
+    print(f" mean log-likelihood per bifurcation: own model {own:.3f}, sparse model {alt:.3f}")
+    assert own > alt
+
+
+def test_same_seed_same_tree_distinct_seeds_distinct_trees(model):
+    env = envelopes.topiary("circle", 6.0)
+    p = growth.GrowParams(seed=11, n_frames=30)
+    a, b = growth.grow_tree(model, env, p), growth.grow_tree(model, env, p)
+    assert np.array_equal(a.parents, b.parents) and np.array_equal(a.nodes3d, b.nodes3d)
+    others = [growth.grow_tree(model, env, growth.GrowParams(seed=s, n_frames=30)) for s in (12, 13)]
+    for o in others:
+        same_topology = np.array_equal(o.parents, a.parents)
+        assert not same_topology or not np.allclose(o.nodes3d[0], a.nodes3d[0], atol=1e-3)
+
+
+def test_tree3d_conventions(model):
+    env = envelopes.topiary("pentagon", 7.0, 5.0)
+    t = growth.grow_tree(model, env, growth.GrowParams(seed=5, n_frames=40, node_budget=150))
+    assert t.parents[0] == -1 and np.count_nonzero(t.parents < 0) == 1
+    assert np.all(t.parents[1:] < np.arange(1, t.n_nodes))          # parents first
+    assert np.allclose(t.nodes3d[:, 0], 0.0)
+    assert t.nodes3d.dtype == np.float32 and t.nodes3d.shape == (40, t.n_nodes, 3)
+    assert 100 <= t.n_nodes <= 150
+    bones.check_positions(t.parents, t.nodes3d)                         # no zero-length bone
+    e = t.edges()
+    L = np.linalg.norm(t.nodes3d[:, e[:, 1]] - t.nodes3d[:, e[:, 0]], axis=2)
+    assert np.abs(L - L[:1]).max() < 1e-4                               # rotations keep lengths
+    assert np.array_equal(t.level, branching_level(t.parents))
+    tips = np.setdiff1d(np.arange(t.n_nodes), t.parents)
+    assert np.allclose(t.radius[tips], t.radius[tips[0]])
+    assert np.allclose(t.radius, pipe_radii(t.parents, float(t.radius[tips[0]])), rtol=1e-5)
+    assert t.radius[tips[0]] == pytest.approx(0.0025 * t.meta["height_px"] * t.meta["metres_per_px"], rel=1e-4)
+    assert t.meta["species"] == "broad" and t.meta["seed"] == 5 and t.meta["generated"]
+    assert envelope_from_meta(t.meta) is not None and "polygon" in t.meta["envelope"]
+    assert np.max(t.meta["envelope"]["z"]) == pytest.approx(7.0, rel=0.02)
+
+
+def test_dominant_frequencies_match_the_source(model):
+    src = source_tree("broad")
+    bin_hz = src.fps / src.n_frames
+    want = pgm.dominant_frequencies(src)
+    env = envelope_from_meta(src.meta)
+    for seed in range(3):
+        t = growth.grow_tree(model, env, growth.GrowParams(seed=seed, n_frames=src.n_frames, fps=src.fps))
+        got = pgm.dominant_frequencies(t)
+        print(f"seed {seed}: source peaks {want.round(3).tolist()} Hz, generated {got.round(3).tolist()} Hz "
+              f"(bin {bin_hz:.3f} Hz)")
+        assert np.all(np.abs(got - want) <= bin_hz + 1e-9)
+        _, es = pgm.energy_spectrum(src)
+        _, eg = pgm.energy_spectrum(t)
+        assert np.abs(es - eg).sum(1).max() < 0.25       # L1 distance of the mean energy spectra
+
+
+def _rotation_rms(tree):
+    rot = pgm.node_rotations(tree.parents, tree.nodes3d.astype(float))
+    return float(np.sqrt(np.mean(rot[:, 1:] ** 2)))
+
+
+def test_wind_scales_the_amplitude(model):
+    env = envelopes.topiary("circle", 6.0)
+    t1 = growth.grow_tree(model, env, growth.GrowParams(seed=3, n_frames=120, wind=1.0))
+    t2 = growth.grow_tree(model, env, growth.GrowParams(seed=3, n_frames=120, wind=2.0))
+    t0 = growth.grow_tree(model, env, growth.GrowParams(seed=3, n_frames=120, wind=0.0))
+    r_rot = _rotation_rms(t2) / _rotation_rms(t1)
+    d1 = np.linalg.norm(t1.nodes3d - t0.nodes3d, axis=2).mean()
+    d2 = np.linalg.norm(t2.nodes3d - t0.nodes3d, axis=2).mean()
+    print(f"wind ×2: rotation RMS ×{r_rot:.4f}, mean node displacement ×{d2 / d1:.4f} ({d1:.4f} → {d2:.4f} m)")
+    assert np.allclose(t0.nodes3d, t0.nodes3d[:1])                   # no wind: still
+    assert r_rot == pytest.approx(2.0, rel=0.02)
+    assert d2 / d1 == pytest.approx(2.0, rel=0.05)
+
+
+def _gusty_wav(path, rate=8000, seconds=12.0, dtype="int16", stereo=True):
+    t = np.arange(int(rate * seconds)) / rate
+    env = 0.25 + 0.75 * (0.5 + 0.5 * np.sin(2 * np.pi * t / 5.0 - 1.0)) ** 2   # gusts every 5 s
+    noise = np.random.default_rng(0).standard_normal(len(t))
+    x = 0.4 * env * noise / 3
+    if dtype == "int16":
+        data = np.clip(x * 32767, -32768, 32767).astype(np.int16)
+    elif dtype == "int32":
+        data = np.clip(x * 2147483647, -2 ** 31, 2 ** 31 - 1).astype(np.int32)
+    else:
+        data = x.astype(np.float32)
+    if stereo:
+        data = np.stack([data, data], 1)
+    wavfile.write(str(path), rate, data)
+    return t, env
+
+
+def test_audio_envelope_formats_and_errors(tmp_path):
+    fps, F = 24.0, 240
+    ref = None
+    for dtype, stereo in (("int16", True), ("int32", False), ("float32", True)):
+        p = tmp_path / f"w_{dtype}.wav"
+        t, env = _gusty_wav(p, dtype=dtype, stereo=stereo)
+        a = wind.audio_envelope(p, fps, F)
+        assert a.shape == (F,) and a.mean() == pytest.approx(1.0)
+        truth = np.interp(np.arange(F) / fps, t, env)
+        c = np.corrcoef(a, truth)[0, 1]
+        print(f"{dtype} {'stereo' if stereo else 'mono'}: correlation with the true envelope {c:.3f}")
+        assert c >= 0.95
+        if ref is not None:
+            assert np.allclose(a, ref, atol=0.02)
+        ref = a
+    (tmp_path / "text.wav").write_text("not audio")
+    wavfile.write(str(tmp_path / "empty.wav"), 8000, np.zeros(0, np.int16))
+    wavfile.write(str(tmp_path / "silent.wav"), 8000, np.zeros(8000, np.int16))
+    for name in ("missing.wav", "text.wav", "empty.wav", "silent.wav"):
+        with pytest.raises(InputError) as exc:
+            wind.audio_envelope(tmp_path / name, fps, F)
+        print(name, "→", exc.value)
+
+
+def test_audio_drives_the_sway(model, tmp_path):
+    fps, F = 24.0, 240
+    p = tmp_path / "gusts.wav"
+    _gusty_wav(p)
+    env = envelopes.topiary("circle", 6.0)
+    a = wind.audio_envelope(p, fps, F)
+    t = growth.grow_tree(model, env, growth.GrowParams(seed=4, n_frames=F, fps=fps), audio=str(p))
+    rot = pgm.node_rotations(t.parents, t.nodes3d.astype(float))[:, 1:]
+    amp = np.sqrt(np.mean(rot ** 2, axis=(1, 2)))                   # instantaneous amplitude
+    k = np.exp(-0.5 * (np.arange(-12, 13) / 6.0) ** 2)
+    amp_s = np.convolve(np.pad(amp, 12, mode="edge"), k / k.sum(), mode="valid")
+    c = np.corrcoef(amp_s, a)[0, 1]
+    print(f"audio drive: correlation of the sway amplitude with the audio envelope {c:.3f}")
+    assert c >= 0.8
+    assert t.meta["audio"] == str(p)
+
+
+def test_envelopes_from_image_and_polygon(tmp_path):
+    img = np.full((300, 200), 255, np.uint8)
+    cv2.circle(img, (100, 120), 80, 0, -1)
+    cv2.rectangle(img, (95, 180), (105, 290), 0, -1)                 # a lollipop: disk on a stem
+    cv2.imwrite(str(tmp_path / "lolli.png"), img)
+    e = envelopes.envelope_from_image(tmp_path / "lolli.png", 9.0)
+    assert e.z.max() == pytest.approx(9.0, rel=0.02) and e.z.min() == pytest.approx(0.0, abs=0.05)
+    assert 2 * e.radius.max() == pytest.approx(9.0 * 161 / 251, rel=0.05)
+    rgba = np.zeros((100, 100, 4), np.uint8)
+    cv2.rectangle(rgba, (30, 10), (70, 90), (255, 255, 255, 255), -1)
+    cv2.imwrite(str(tmp_path / "box.png"), rgba)
+    b = envelopes.envelope_from_image(tmp_path / "box.png", 4.0)
+    assert 2 * b.radius.max() == pytest.approx(4.0 * 41 / 81, rel=0.05)
+    cv2.imwrite(str(tmp_path / "blank.png"), np.full((50, 50), 200, np.uint8))
+    (tmp_path / "bad.png").write_bytes(b"\x89PNG broken")
+    for name in ("blank.png", "bad.png", "none.png"):
+        with pytest.raises(InputError):
+            envelopes.envelope_from_image(tmp_path / name, 5.0)
+    poly = np.array([[10, 5], [14, 5], [14, 9], [12, 11], [10, 9]], float)
+    pe = envelopes.envelope_from_polygon(poly)
+    assert np.allclose(pe.offset, [12, 5], atol=0.05) and pe.z.max() == pytest.approx(6.0, rel=0.02)
+    with pytest.raises(InputError):
+        envelopes.envelope_from_polygon(np.array([[0, 0], [1, 1], [2, 2]]))
+    with pytest.raises(InputError):
+        envelopes.topiary("star", 5.0)
+
+
+def test_cancel_and_bad_parameters(model):
+    env = envelopes.topiary("heart", 6.0)
+    calls = []
+
+    def stop_soon(stage, frac):
+        calls.append(stage)
+        return len(calls) < 3
+    with pytest.raises(Cancelled):
+        growth.grow_tree(model, env, growth.GrowParams(seed=1), progress=stop_soon)
+    for bad in (dict(node_budget=2), dict(n_frames=0), dict(wind=-1.0), dict(height_m=0.0)):
+        with pytest.raises(InputError):
+            growth.grow_tree(model, env, growth.GrowParams(**bad))
+
+
+def test_one_tree_is_fast(model):
+    """Core generation of one ~200-bone, 250-frame tree ≤ 0.5 s (best of 3)."""
+    env = envelope_from_meta(source_tree("broad").meta)
+    times = []
+    for seed in range(3):
+        t0 = time.perf_counter()
+        t = growth.grow_tree(model, env, growth.GrowParams(seed=seed, node_budget=201, n_frames=250))
+        times.append(time.perf_counter() - t0)
+    print(f"{t.n_nodes - 1} bones × 250 frames: {np.round(times, 3)} s")
+    assert t.n_nodes - 1 >= 190
+    assert min(times) <= 0.5
