@@ -171,6 +171,7 @@ def place_leaves(tree, points: np.ndarray, frame_bgr: np.ndarray, base_px: np.nd
     foliage = ~on_bark(allp[:, [0, 2]], tree.parents, rest[:, [0, 2]], tree.radius)
     if foliage.any():
         points, dark = points[foliage], dark[foliage]
+    points, dark = near_branches(points, dark, tree, base_px, scale)
     if mask is not None and p.fill:
         extra = fill_seeds(points, frame_bgr, np.asarray(mask, bool), 2 * median_spacing(points), p.seed)
         if len(extra):
@@ -222,6 +223,27 @@ def place_leaves(tree, points: np.ndarray, frame_bgr: np.ndarray, base_px: np.nd
     return LeafClusters(node.astype(np.int32), pos.astype(np.float32), axis.astype(np.float32), colour,
                         dark.astype(bool), flut, float(radius), float(0.55 * radius), int(p.cards), int(p.seed),
                         size)
+
+
+#: Seeds farther than this share of the tree height from every thin branch node are not foliage
+#: (grass or shrubs inside a loose outline by the trunk base).
+MAX_LEAF_REACH = 0.12
+
+
+def near_branches(points: np.ndarray, dark: np.ndarray, tree, base_px, scale: float):
+    """Keep the seeds ``points (S, 2)`` px (and their ``dark`` flags) within ``MAX_LEAF_REACH`` of
+    the tree's height from a node of a thin branch (radius below ``BARK_RADIUS_SHARE`` of the
+    trunk's) in the image plane: leaves grow on twigs."""
+    r = np.asarray(tree.radius, np.float64)
+    thin = np.flatnonzero(r < BARK_RADIUS_SHARE * r.max())
+    if len(thin) == 0 or len(points) == 0:
+        return points, dark
+    rest = tree.nodes3d[0].astype(np.float64)
+    height = max(float(np.ptp(rest[:, 2])), 1e-9)
+    p = image_to_plane(np.asarray(points, np.float64), np.asarray(base_px, float)) * scale
+    d, _ = cKDTree(rest[thin][:, [0, 2]]).query(p[:, [0, 2]])
+    keep = d <= MAX_LEAF_REACH * height
+    return (points[keep], dark[keep]) if keep.any() else (points, dark)
 
 
 def on_bark(points: np.ndarray, parents: np.ndarray, nodes: np.ndarray, radius: np.ndarray,

@@ -102,7 +102,8 @@ def build_leaf_mesh(tree: Tree3D, rig, coll, name: str, names: list[str], materi
     uv = me.uv_layers.new(name="UVMap")
     uv.data.foreach_set("uv", g["uv"].astype(np.float32).ravel())
     col = me.color_attributes.new("Col", "BYTE_COLOR", "POINT")
-    rgba = np.concatenate([g["colour"], np.ones((V, 1))], axis=1).astype(np.float32)
+    rel = np.clip(g["colour"] / leaf_tint(tree.leaves), 0.0, 1.0)      # texture × this = the video's colour
+    rgba = np.concatenate([rel, np.ones((V, 1))], axis=1).astype(np.float32)
     col.data.foreach_set("color_srgb", rgba.ravel())
     me.materials.append(material)
     me.update()
@@ -118,21 +119,29 @@ def build_leaf_mesh(tree: Tree3D, rig, coll, name: str, names: list[str], materi
     return ob
 
 
-def leaf_texture_pixels(size: int = TEXTURE_SIZE) -> np.ndarray:
+def leaf_tint(leaves) -> np.ndarray:
+    """``(3,)`` sRGB colour of the procedural leaf texture: the 90th percentile of the clusters'
+    video colours per channel. The ``Col`` attribute holds each cluster's colour divided by it,
+    so texture × ``Col`` = the video's colour, while a viewer that ignores vertex colours (solid
+    view, some engines) still shows leaf-coloured leaves."""
+    return np.maximum(np.percentile(np.asarray(leaves.colour, np.float64), 90, axis=0), 1e-3)
+
+
+def leaf_texture_pixels(size: int = TEXTURE_SIZE, tint=(1.0, 1.0, 1.0)) -> np.ndarray:
     """``(size, size, 4)`` float RGBA of one leaf (stem at the bottom, tip at the top): a pointed
-    blade ``|u − ½| < 0.45 sin(π v^0.8)``, light grey with a darker midrib (the video's colour
-    multiplies it), transparent outside."""
+    blade ``|u − ½| < 0.45 sin(π v^0.8)`` in ``tint`` (sRGB) shaded by a darker midrib,
+    transparent outside."""
     v, u = np.mgrid[0:size, 0:size].astype(np.float64) / (size - 1)
     half = 0.45 * np.sin(np.pi * np.clip(v, 0, 1) ** 0.8)
     d = np.abs(u - 0.5)
     alpha = np.clip((half - d) * size * 0.5, 0.0, 1.0)
     grey = 0.85 - 0.25 * np.exp(-(d / 0.02) ** 2) * (v < 0.95) - 0.1 * (d / np.maximum(half, 1e-3)) ** 2
     rgba = np.stack([grey, grey, grey, alpha], axis=-1)
-    rgba[..., :3] = np.clip(rgba[..., :3], 0, 1)
+    rgba[..., :3] = np.clip(rgba[..., :3] / 0.85 * np.asarray(tint, np.float64), 0, 1)
     return rgba.astype(np.float32)
 
 
-def leaf_image(name: str, path: str | None):
+def leaf_image(name: str, path: str | None, tint=(1.0, 1.0, 1.0)):
     """The leaf texture: the user's image at ``path`` (packed into the .blend), or a procedural
     leaf (:func:`leaf_texture_pixels`). Raises InputError for an image Blender cannot read."""
     if path:
@@ -153,20 +162,21 @@ def leaf_image(name: str, path: str | None):
             raise
         return img
     img = bpy.data.images.new(f"{name} Texture", TEXTURE_SIZE, TEXTURE_SIZE, alpha=True)
-    img.pixels.foreach_set(leaf_texture_pixels().ravel())
+    img.pixels.foreach_set(leaf_texture_pixels(tint=tint).ravel())
     img.file_format = "PNG"
     img.pack()
     return img
 
 
-def leaf_material(name: str, image_path: str | None = None) -> bpy.types.Material:
+def leaf_material(name: str, image_path: str | None = None, tint=(0.3, 0.5, 0.2)) -> bpy.types.Material:
     """Leaf material: the leaf image (``image_path`` or procedural, packed; alpha cut-out)
     multiplied by the mesh's ``Col`` colour attribute (the video's colour), Principled BSDF,
-    two-sided. The caller removes it (and its image, via :func:`material_images`) on failure."""
+    two-sided; ``tint`` (sRGB, :func:`leaf_tint`) colours the procedural leaf and the solid view.
+    The caller removes it (and its image, via :func:`material_images`) on failure."""
     mat = bpy.data.materials.new(name)
     img = None
     try:
-        mat.diffuse_color = (0.18, 0.3, 0.1, 1.0)
+        mat.diffuse_color = (*(_srgb_to_linear(np.asarray(tint, np.float64)) * 0.8), 1.0)
         if hasattr(mat, "surface_render_method"):          # EEVEE Next (4.2+)
             mat.surface_render_method = "DITHERED"
         if hasattr(mat, "blend_method"):
@@ -175,7 +185,7 @@ def leaf_material(name: str, image_path: str | None = None) -> bpy.types.Materia
             except TypeError:
                 pass
         mat.use_backface_culling = False
-        img = leaf_image(name, image_path)
+        img = leaf_image(name, image_path, tint)
         if mat.node_tree is None:
             mat.use_nodes = True
         nt = mat.node_tree
@@ -214,3 +224,7 @@ def material_images(mat) -> list:
     if mat is None or mat.node_tree is None:
         return []
     return [n.image for n in mat.node_tree.nodes if n.type == "TEX_IMAGE" and n.image is not None]
+
+
+def _srgb_to_linear(c: np.ndarray) -> np.ndarray:
+    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)

@@ -116,8 +116,7 @@ def render_preview(context, tree: Tree3D, objects, path: str, size: tuple[int, i
         r.image_settings.file_format = "PNG"
         shading = scene.display.shading
         shading.light = "STUDIO"
-        shading.color_type = "SINGLE"
-        shading.single_color = (0.42, 0.30, 0.20)
+        shading.color_type = "TEXTURE"        # bark colour, leaf cards cut out by their image
         world = scene.world or bpy.data.worlds.new("Preview World")
         scene.world = world
         world.color = (0.85, 0.9, 0.95)

@@ -96,7 +96,8 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
         leaf_obj = leaf_mat = None
         if leaf_names:
             t = time.perf_counter()
-            leaf_mat = created.add(bpy.data.materials, leaves_build.leaf_material(names["leaf_material"], leaf_image))
+            leaf_mat = created.add(bpy.data.materials, leaves_build.leaf_material(names["leaf_material"], leaf_image,
+                                                                                 leaves_build.leaf_tint(tree.leaves)))
             for img in leaves_build.material_images(leaf_mat):
                 created.add(bpy.data.images, img)
             leaf_obj = leaves_build.build_leaf_mesh(tree, rig, coll, names["leaves"], leaf_names, leaf_mat, created)
