@@ -376,5 +376,9 @@ def grow_tree(model: SpeciesModel, envelope: Envelope, params: GrowParams | None
             "mu_deg": float(np.degrees(lifted.mu)), "height_px": float(H * k), "metres_per_px": float(1.0 / k),
             "leaf_density": float(p.leaf_density), "node_budget": int(p.node_budget),
             "time_offset_s": float(p.time_offset_s)}
-    return Tree3D(g.parents.astype(np.int32), nodes3d.astype(np.float32), radius,
+    tree = Tree3D(g.parents.astype(np.int32), nodes3d.astype(np.float32), radius,
                   branching_level(g.parents).astype(np.int32), fps, p.name or f"{model.name}_{int(p.seed)}", meta)
+    if p.leaf_density > 0 and model.leaves is not None:
+        from .leaves import grow_leaves
+        tree.leaves = grow_leaves(tree, model.leaves, p.leaf_density, int(p.seed))
+    return tree

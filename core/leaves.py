@@ -393,3 +393,37 @@ def leaf_centres(tree) -> np.ndarray:
     head = tree.parents[lv.node]
     offset = lv.pos.astype(np.float64) - tree.nodes3d[0, head].astype(np.float64)
     return tree.nodes3d[:, head].astype(np.float64) + quat_rotate(q[:, b], offset[None])
+
+
+def grow_leaves(tree, info: dict, density: float = 1.0, seed: int = 0, params: LeafParams | None = None):
+    """Leaf clusters for a generated tree (no video): around its thin-branch nodes (radius below
+    ``BARK_RADIUS_SHARE`` of the trunk's), ``info["per_node"] × density`` clusters per node, each
+    ``info["radius_frac"] / √density`` of the height (the species' own foliage, paper §5: fewer,
+    larger clusters), in the species' leaf colour ±8 %, axis away from the crown centre, flutter
+    as for a reconstruction. ``info`` is :func:`.pgm.leaf_info` of the source. Returns
+    :class:`LeafClusters` or None."""
+    from .tree3d import LeafClusters
+    p = params or LeafParams()
+    rng = np.random.default_rng([int(seed) & 0xFFFFFFFF, 0x1EAF])
+    rest = tree.nodes3d[0].astype(np.float64)
+    r = np.asarray(tree.radius, np.float64)
+    thin = np.flatnonzero((r < BARK_RADIUS_SHARE * r.max()) & (np.arange(tree.n_nodes) > 0))
+    if len(thin) == 0 or density <= 0:
+        return None
+    H = max(float(np.ptp(rest[:, 2])), 1e-6)
+    n = int(min(p.max_clusters, max(1, round(info["per_node"] * density * len(thin)))))
+    node = rng.choice(thin, n, replace=n > len(thin))
+    radius = float(info["radius_frac"]) * H / np.sqrt(min(max(density, 1e-3), 1.0))
+    pos = rest[node] + rng.normal(scale=0.35 * radius, size=(n, 3))
+    centre = pos.mean(0)
+    axis = pos - centre
+    norm = np.linalg.norm(axis, axis=1, keepdims=True)
+    axis = np.where(norm > 1e-9, axis / np.maximum(norm, 1e-12), [0.0, 0.0, 1.0])
+    colour = np.clip(np.asarray(info["colour"], np.float64)[None] * rng.uniform(0.92, 1.08, (n, 1)), 0, 1)
+    dist = np.linalg.norm(pos - rest[node], axis=1)
+    beta = (2 * np.pi * dist / (4 * radius)) % (2 * np.pi)
+    hz = min(p.flutter_hz, 0.45 * float(tree.fps))
+    flut = flutter_angles(tree, node, beta, hz, p.flutter_gain, np.radians(p.flutter_max_deg))
+    dark = (pos[:, 1] - centre[1]) > 0                      # behind the crown centre
+    return LeafClusters(node.astype(np.int32), pos.astype(np.float32), axis.astype(np.float32),
+                        colour.astype(np.float32), dark, flut, radius, 0.55 * radius, int(info["cards"]), int(seed))

@@ -529,7 +529,9 @@ class SpeciesModel:
     plane (branch chords above the trunk; growth uses it as a tropism term); ``mirror_p`` share
     of clockwise (mirrored) bifurcations;
     ``source_height_m``; ``fps`` and ``n_frames`` of the source; ``conifer``; ``mu_deg`` mean
-    branching angle of the source lift; ``fallbacks`` notes from degenerate fits."""
+    branching angle of the source lift; ``fallbacks`` notes from degenerate fits; ``leaves`` the
+    source's foliage (median leaf colour sRGB, cluster radius / height, cards per cluster,
+    clusters per thin-branch node) or None for a bare source."""
 
     name: str
     angles: np.ndarray
@@ -550,6 +552,7 @@ class SpeciesModel:
     mu_deg: float = 38.0
     version: int = VERSION
     fallbacks: list = field(default_factory=list)
+    leaves: dict | None = None      # {"colour": sRGB (3,), "radius_frac", "cards", "per_node"} or None
 
     def to_json(self) -> dict:
         """JSON-able dict (rounded, human-readable)."""
@@ -574,6 +577,10 @@ class SpeciesModel:
             "source": {"height_m": round(float(self.source_height_m), 4), "fps": float(self.fps),
                        "n_frames": int(self.n_frames)},
             "fallbacks": list(self.fallbacks),
+            **({"leaves": {"colour": arr(self.leaves["colour"], 4),
+                           "radius_frac": round(float(self.leaves["radius_frac"]), 5),
+                           "cards": int(self.leaves["cards"]),
+                           "per_node": round(float(self.leaves["per_node"]), 4)}} if self.leaves else {}),
         }
 
     @classmethod
@@ -613,7 +620,7 @@ class SpeciesModel:
                         float(sh["branch_frac"]), int(sh["n_bifurcations"]),
                         _orientation(sh["orientation_deg"]), float(np.clip(float(sh["mirror_p"]), 0.0, 1.0)), float(src["height_m"]), float(src["fps"]),
                         int(src["n_frames"]), bool(d.get("conifer", False)), float(sh.get("mu_deg", 38.0)),
-                        ver, list(d.get("fallbacks", [])))
+                        ver, list(d.get("fallbacks", [])), _leaf_info(d.get("leaves")))
         except (KeyError, TypeError, ValueError) as exc:
             raise InputError(f"{where} is incomplete or damaged ({exc.__class__.__name__}: {exc}); "
                              "fit the species again or pick another file") from None
@@ -621,6 +628,30 @@ class SpeciesModel:
                 and 0 < model.min_branch_frac < 1 and model.fps > 0):
             raise InputError(f"{where} has out-of-range shape numbers; fit the species again")
         return model
+
+
+def _leaf_info(d) -> dict | None:
+    if d is None:
+        return None
+    colour = [float(c) for c in d["colour"]]
+    info = {"colour": colour, "radius_frac": float(d["radius_frac"]), "cards": int(d["cards"]),
+            "per_node": float(d["per_node"])}
+    if len(colour) != 3 or not all(0 <= c <= 1 for c in colour) or not 0 < info["radius_frac"] < 1 \
+            or not 1 <= info["cards"] <= 256 or not info["per_node"] > 0:
+        raise ValueError("leaves need colour (3 values 0..1), 0 < radius_frac < 1, cards 1..256, per_node > 0")
+    return info
+
+
+def leaf_info(tree) -> dict | None:
+    """The foliage of a reconstructed tree as a species keeps it (see :class:`SpeciesModel`)."""
+    lv = getattr(tree, "leaves", None)
+    if lv is None or lv.count == 0:
+        return None
+    H = float(max(np.ptp(tree.nodes3d[0][:, 2]), 1e-6))
+    r = np.asarray(tree.radius, np.float64)
+    thin = int(np.sum(r < 0.3 * r.max())) or 1
+    return {"colour": np.median(lv.colour, axis=0).tolist(), "radius_frac": float(lv.radius / H),
+            "cards": int(lv.cards), "per_node": float(lv.count / thin)}
 
 
 def _orientation(x) -> tuple[float, float]:
@@ -727,7 +758,7 @@ def fit_species(tree, name: str, keep: float = KEEP_FRACTION) -> SpeciesModel:
         orientation_deg=_orientation_stats(branch_orientations(parents, nodes[0])),
         mirror_p=float(np.mean(feats.mirrored)), source_height_m=height, fps=float(tree.fps),
         n_frames=int(nodes.shape[0]), conifer=bool(tree.meta.get("conifer", False)),
-        mu_deg=float(tree.meta.get("mu_deg", 38.0)), fallbacks=fallbacks)
+        mu_deg=float(tree.meta.get("mu_deg", 38.0)), fallbacks=fallbacks, leaves=leaf_info(tree))
 
 
 # ============================================================================ files
