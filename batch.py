@@ -1,6 +1,8 @@
 """Batch entry: video + outline → moving 2D skeleton → animated 3D tree (+ Blender scene, exports).
 
     python batch.py VIDEO --outline OUTLINE.json|MASK.png --out DIR [options]
+    python batch.py --generate N --species broad|FILE.json --out DIR [--envelope heart] [options]
+    python batch.py VIDEO --outline ... --generate N --out DIR [options]    # species fitted from the video
     blender -b --python batch.py -- VIDEO --outline ... --out DIR [options]
 
 Exit codes: 0 success, 2 bad input (one line on stderr naming the problem and the fix),
@@ -41,10 +43,12 @@ class _Parser(argparse.ArgumentParser):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = _Parser(prog="batch.py", description="Reconstruct a moving tree skeleton from a video.")
-    p.add_argument("video", help="input video file (mp4/mov/avi)")
-    p.add_argument("--outline", required=True,
-                   help="tree outline in frame 1: JSON list of [x, y] pixel points, a mask image (white = tree), "
+    p = _Parser(prog="batch.py", description="Reconstruct a moving tree skeleton from a video, "
+                "and/or generate new animated trees of a species (--generate).", epilog=GENERATE_HELP,
+                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("video", nargs="?", help="input video file (mp4/mov/avi); optional with --generate --species")
+    p.add_argument("--outline",
+                   help="(required with a VIDEO) tree outline in frame 1: JSON list of [x, y] pixel points, a mask image (white = tree), "
                         "or 'auto' (what sways in the first seconds)")
     p.add_argument("--out", required=True, help="output folder (created if missing)")
     p.add_argument("--npz", action="store_true",
@@ -79,7 +83,29 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-video", action="store_true", help="skip overlay.mp4 (overlay.png is still written)")
     p.add_argument("--force", action="store_true", help="overwrite existing output files in DIR")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
+    g = p.add_argument_group("generation (--generate; see below)")
+    g.add_argument("--generate", type=int, metavar="N", help="write N new animated trees (1..1000) to DIR/tree_000/ ...")
+    g.add_argument("--species", help="species to grow without a video: broad, sparse, conifer (shipped) or a "
+                                     "species .json file (with a VIDEO the species is fitted from its tree)")
+    g.add_argument("--envelope", help="shape the trees fill: triangle, circle, pentagon, heart or a silhouette image "
+                                      "(default: the video's outline; without a video circle, triangle for conifers)")
+    g.add_argument("--wind", type=float, default=1.0, help="sway strength (default 1 = as in the example; 2 = twice)")
+    g.add_argument("--audio", metavar="WAV", help="WAV recording whose loudness drives the sway over time (gusts)")
+    g.add_argument("--seed", type=int, default=0, help="random seed; tree i uses seed + i (default 0)")
+    g.add_argument("--nodes", type=int, default=200, help="node budget per tree (default 200)")
+    g.add_argument("--frames-out", type=int, metavar="F",
+                   help="frames of each generated animation (default: the species' source clip)")
+    g.add_argument("--seconds", type=float, help="length of each generated animation in seconds (instead of --frames-out)")
     return p
+
+
+GENERATE_HELP = """generation:
+  --generate N writes DIR/generated.json (settings; per tree seed, species, envelope, bones,
+  leaf clusters, files) and one folder per tree, DIR/tree_000/ ... DIR/tree_<N-1>/, each with
+  tree3d.npz and the files asked for by --fbx/--usd/--gltf/--blend/--preview (tree.fbx, ...).
+  With a VIDEO the reconstruction's files go to DIR as usual (without exports), plus
+  DIR/species.json (the species fitted from the reconstructed tree). --height is the envelope's
+  height in metres; --no-leaves/--leaf-density/--leaf-image apply to the generated trees."""
 
 
 def _progress_printer(quiet: bool):
@@ -119,6 +145,91 @@ def _blender_outputs(pkg, InputError):
     return import_module(f"{pkg.__name__}.operators.outputs")
 
 
+def _wanted(args) -> tuple[dict, list[str]]:
+    """({format: bool}, file names) of the Blender exports asked for."""
+    wanted = {"fbx": args.fbx, "usd": args.usd, "gltf": args.gltf, "blend": args.blend, "preview": args.preview}
+    return wanted, [n for k, n in (("fbx", "tree.fbx"), ("usd", "tree.usdc"), ("gltf", "tree.glb"),
+                                   ("blend", "tree.blend"), ("preview", "preview.png")) if wanted[k]]
+
+
+def _plan_generation(args, pkg, InputError):
+    """Check every --generate input before any work (core/generate_batch.py): the request, the
+    species (mode without a video), the envelope, the audio. None without --generate."""
+    if args.generate is None:
+        if args.video is None:
+            raise InputError("no VIDEO given: give VIDEO --outline OUTLINE.json, or --generate N --species NAME "
+                             "to grow new trees")
+        for opt in ("species", "envelope", "audio", "frames_out", "seconds"):
+            if getattr(args, opt) is not None:
+                raise InputError(f"--{opt.replace('_', '-')} only applies with --generate N; add it or drop the option")
+        return None
+    from importlib import import_module
+    from types import SimpleNamespace
+    gb = import_module(f"{pkg.__name__}.core.generate_batch")
+    req = gb.GenerateRequest(count=args.generate, species=args.species, envelope=args.envelope, wind=args.wind,
+                             audio=args.audio, seed=args.seed, nodes=args.nodes, frames_out=args.frames_out,
+                             seconds=args.seconds, height_m=args.height,
+                             leaf_density=0.0 if args.no_leaves else args.leaf_density)
+    gb.check_request(req, has_video=args.video is not None)
+    plan = SimpleNamespace(gb=gb, req=req, model=None, species_label=None, envelope=None, envelope_label=None)
+    if req.species is not None:
+        plan.model, plan.species_label = gb.load_species_spec(req.species)
+    spec = req.envelope or (gb.default_envelope(plan.model) if plan.model is not None else None)
+    if spec is not None:
+        plan.envelope, plan.envelope_label = gb.make_envelope(spec, req.height_m)
+    if req.audio is not None:
+        gb.check_audio(req.audio)
+    if args.leaf_image and not os.path.isfile(args.leaf_image):
+        raise InputError(f"leaf image '{args.leaf_image}' does not exist; give an image file or drop "
+                         "--leaf-image for the procedural leaf")
+    return plan
+
+
+def _run_generation(args, plan, outputs, wanted) -> int:
+    """Grow and write the trees of ``plan`` (its model and envelope set) into ``args.out``."""
+    log = (lambda m: None) if args.quiet else (lambda m: sys.stderr.write(m + "\n"))
+    write = None
+    if outputs is not None:
+        def write(tree, folder):
+            return outputs.write_outputs(tree, folder, wanted, overwrite=args.force, fresh_scene=True,
+                                         report=log, leaf_image=args.leaf_image)
+    t0 = time.monotonic()
+    entries = plan.gb.generate_trees(plan.model, plan.species_label, plan.envelope, plan.envelope_label, plan.req,
+                                     args.out, write, _progress_printer(args.quiet), log)
+    bones = [e["bones"] for e in entries]
+    sys.stderr.write(f"done: {len(entries)} tree(s) of {plan.species_label} in {plan.envelope_label}, "
+                     f"{min(bones)}-{max(bones)} bones, {entries[0]['frames']} frames, "
+                     f"{time.monotonic() - t0:.1f} s -> {os.path.join(args.out, plan.gb.INDEX)}\n")
+    return 0
+
+
+def _generate_only(args, pkg, plan, InputError) -> int:
+    """``--generate N --species S`` without a video."""
+    wanted, files = _wanted(args)
+    _check_out(args.out, plan.gb.planned_files(plan.req, files), args.force, InputError)
+    outputs = _blender_outputs(pkg, InputError) if files else None
+    if outputs is not None:
+        outputs.check_wanted(wanted)
+    os.makedirs(args.out, exist_ok=True)
+    return _run_generation(args, plan, outputs, wanted)
+
+
+def _generate_from_tree(args, pkg, plan, tree, name, outputs, wanted) -> int:
+    """``VIDEO --generate N``: fit the species of the reconstructed ``tree``, save DIR/species.json,
+    grow the trees (default envelope: the reconstruction's)."""
+    from importlib import import_module
+    pgm = import_module(f"{pkg.__name__}.core.pgm")
+    lift3d = import_module(f"{pkg.__name__}.core.lift3d")
+    plan.model = pgm.fit_species(tree, name)
+    plan.species_label = os.path.join(args.out, plan.gb.SPECIES_FILE)
+    pgm.save_species(plan.species_label, plan.model)
+    if not args.quiet:
+        sys.stderr.write(f"[species] {plan.species_label}\n")
+    if plan.envelope is None:
+        plan.envelope, plan.envelope_label = lift3d.envelope_from_meta(tree.meta), "reconstruction"
+    return _run_generation(args, plan, outputs, wanted)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the batch job on ``argv``; returns the exit code (argparse errors exit 2 via SystemExit)."""
     args = build_parser().parse_args(argv)
@@ -126,6 +237,11 @@ def main(argv: list[str] | None = None) -> int:
     from importlib import import_module
     errors = import_module(f"{pkg.__name__}.core.errors")
     try:
+        gen = _plan_generation(args, pkg, errors.InputError)        # None without --generate
+        if args.video is None:
+            return _generate_only(args, pkg, gen, errors.InputError)
+        if not args.outline:
+            raise errors.InputError("give the tree's outline in frame 1 with --outline OUTLINE.json|MASK.png|auto")
         pipeline = import_module(f"{pkg.__name__}.core.pipeline")
         model = import_module(f"{pkg.__name__}.core.model")
         overlay = import_module(f"{pkg.__name__}.core.overlay")
@@ -134,7 +250,8 @@ def main(argv: list[str] | None = None) -> int:
         blender_files = [n for k, n in (("fbx", "tree.fbx"), ("usd", "tree.usdc"), ("gltf", "tree.glb"),
                                         ("blend", "tree.blend"), ("preview", "preview.png")) if wanted[k]]
         names = ["skeleton.npz", "tree3d.npz", "overlay.png"] + ([] if args.no_video else ["overlay.mp4"]) \
-            + (["result.npz"] if args.npz else []) + blender_files
+            + (["result.npz"] if args.npz else []) \
+            + (blender_files if gen is None else gen.gb.planned_files(gen.req, blender_files, with_species=True))
         settings = pipeline.Settings(levels=args.levels, skeleton=args.skeleton, frames=args.frames,
                                      scale=args.scale, height_m=args.height)
         settings.lift.conifer = args.conifer
@@ -174,11 +291,13 @@ def main(argv: list[str] | None = None) -> int:
         overlay.write_overlays(res.info, res.start, res.skeleton, res.tracks,
                                os.path.join(args.out, "overlay.png"),
                                None if args.no_video else os.path.join(args.out, "overlay.mp4"), cb)
-        if outputs is not None:
+        if outputs is not None and gen is None:          # with --generate the exports are per generated tree
             outputs.write_outputs(tree, args.out, wanted, overwrite=args.force, leaf_image=args.leaf_image,
                                   report=lambda m: sys.stderr.write(m + "\n"))
         sys.stderr.write(f"done: {res.skeleton.n_nodes} nodes, {res.tracks.points.shape[1]} tracks, "
                          f"{res.tracks.n_frames} frames -> {args.out}\n")
+        if gen is not None:
+            return _generate_from_tree(args, pkg, gen, tree, name, outputs, wanted)
         return 0
     except errors.InputError as exc:
         sys.stderr.write(f"error: {exc}\n")
