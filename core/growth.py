@@ -148,6 +148,10 @@ def _stem_top(region: Region2D) -> float:
     return float(z[wide[0]]) if len(wide) else 0.0
 
 
+#: sampled forks tried at one tip before it stops growing
+MAX_FORK_TRIES = 6
+
+
 def grow_2d(model: SpeciesModel, region: Region2D, p: GrowParams, rng: np.random.Generator,
             progress: ProgressFn | None = None) -> Grown2D:
     """Step 1–2 of the module docstring; metres."""
@@ -178,6 +182,7 @@ def grow_2d(model: SpeciesModel, region: Region2D, p: GrowParams, rng: np.random
     attr = region.attractors(p.attractors)
     d_cur = _seg_dist(attr, pos[0][None], pos[1][None])[0]
     live = [1]
+    fails: dict[int, int] = {}
     stopped = "no growing tip left"
     steps = 0
     while live:
@@ -224,7 +229,11 @@ def grow_2d(model: SpeciesModel, region: Region2D, p: GrowParams, rng: np.random
             if valid.any():
                 break
         if not valid.any() or ll.min() < 0.25 * min_len:
-            live.pop(k)
+            # a tip whose sampled fork does not fit gets new samples before it stops: the first
+            # fork of a small envelope failing once would otherwise leave a bare pole
+            fails[i] = fails.get(i, 0) + 1
+            if fails[i] >= MAX_FORK_TRIES:
+                live.pop(k)
             continue
         need = n_seg(ll[0]) + n_seg(ll[1])
         if total + need > budget:            # stop here: skipping this pair would favour short ones

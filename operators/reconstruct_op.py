@@ -20,6 +20,8 @@ from . import annotation, clip_overlay
 from .scene_build import build_tree
 
 POLL_SECONDS = 0.1
+#: the last reconstructed Tree3D of this session ({"tree": Tree3D}): Save Species and Generate use it
+LAST_TREE: dict = {}
 
 
 def cache_dir() -> str:
@@ -210,6 +212,7 @@ class TREE_OT_reconstruct(_JobOperator, bpy.types.Operator):
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
         clip_overlay.store(res)
+        LAST_TREE["tree"] = tree
         props.leaf_polygons = built["leaf_polygons"]
         for w in res.warnings:
             self.report({"WARNING"}, w)

@@ -26,7 +26,7 @@ MAX_NAME = 63
 def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = False,
                mesh: bool = True, sides: int = 8, leaves: bool = True,
                leaf_image: str | None = None, curliness: float | None = None,
-               bark: str | None = None) -> dict:
+               bark: str | None = None, materials: dict | None = None) -> dict:
     """Create the animated tree in a new collection ``collection_name`` under the scene collection.
 
     Creates an armature object ``"<name> Rig"`` (one bone per edge, ``"B{child:03d}"``, rest pose =
@@ -44,6 +44,9 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
     An existing collection of that name raises :class:`InputError` unless ``replace``; then its
     objects and their data are removed once the new tree is complete (a failed build leaves the
     old tree as it was).
+
+    ``materials`` ``{"bark": Material, "leaf": Material}`` reuses existing materials (a forest
+    shares one bark and one leaf material) instead of creating them.
 
     Returns ``{"collection", "armature", "mesh" (or None), "action", "material" (or None),
     "leaves" (or None), "leaf_polygons", "timings"}`` with ``timings`` in seconds (``rotations``,
@@ -90,16 +93,20 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
         mesh_obj = material = None
         if mesh:
             t = time.perf_counter()
-            material = created.add(bpy.data.materials, bark_material(names["material"], branch_params.bark))
+            material = (materials or {}).get("bark")
+            if material is None:
+                material = created.add(bpy.data.materials, bark_material(names["material"], branch_params.bark))
             mesh_obj = _build_mesh(tree, rest, rig, coll, names["mesh"], material, branch_params, created)
             timings["mesh"] = time.perf_counter() - t
         leaf_obj = leaf_mat = None
         if leaf_names:
             t = time.perf_counter()
-            leaf_mat = created.add(bpy.data.materials, leaves_build.leaf_material(names["leaf_material"], leaf_image,
-                                                                                 leaves_build.leaf_tint(tree.leaves)))
-            for img in leaves_build.material_images(leaf_mat):
-                created.add(bpy.data.images, img)
+            leaf_mat = (materials or {}).get("leaf")
+            if leaf_mat is None:
+                leaf_mat = created.add(bpy.data.materials, leaves_build.leaf_material(
+                    names["leaf_material"], leaf_image, leaves_build.leaf_tint(tree.leaves)))
+                for img in leaves_build.material_images(leaf_mat):
+                    created.add(bpy.data.images, img)
             leaf_obj = leaves_build.build_leaf_mesh(tree, rig, coll, names["leaves"], leaf_names, leaf_mat, created)
             timings["leaves"] = time.perf_counter() - t
 
@@ -110,7 +117,8 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
                               (mesh_obj and mesh_obj.data, names["mesh"]), (material, names["material"]),
                               (leaf_obj, names["leaves"]), (leaf_obj and leaf_obj.data, names["leaves"]),
                               (leaf_mat, names["leaf_material"])):
-                if id_ is not None and id_.name != name:
+                shared = materials is not None and any(id_ is m for m in materials.values())
+                if id_ is not None and id_.name != name and not shared:
                     id_.name = name
         deselect_all(context.view_layer)
         for ob in coll.objects:

@@ -5,9 +5,9 @@ import tree_from_video
 
 
 def _classes():
-    from tree_from_video.operators import reconstruct_op, skeleton_op
+    from tree_from_video.operators import generate_op, reconstruct_op, skeleton_op
     from tree_from_video.ui import panel, properties
-    return skeleton_op.classes + reconstruct_op.classes + panel.classes + properties.classes
+    return skeleton_op.classes + reconstruct_op.classes + generate_op.classes + panel.classes + properties.classes
 
 
 def _registered():
@@ -57,11 +57,12 @@ def test_panel_labels_and_operators_are_registered():
     tree_from_video.register()
     try:
         labels = {c.bl_label for c in panel.classes}
-        assert labels == {"Tree from Video", "Source", "Outline", "Reconstruction", "Output", "Export"}
+        assert labels == {"Tree from Video", "Source", "Outline", "Reconstruction", "Output", "Generate", "Export"}
         assert all(c.is_registered and c.bl_category == "Tree" and c.bl_space_type == "VIEW_3D" for c in panel.classes)
         assert all(c.bl_parent_id == "TREE_PT_main" for c in panel.classes if c is not panel.TREE_PT_main)
         for idname in ("tree_video.reconstruct", "tree_video.preview", "tree_video.cancel", "tree_video.open_clip",
-                       "tree_video.export",
+                       "tree_video.export", "tree_video.generate", "tree_video.generate_forest",
+                       "tree_video.save_species",
                        "tree_video.trace_skeleton"):
             mod, name = idname.split(".")
             assert hasattr(getattr(bpy.ops, mod), name)

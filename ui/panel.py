@@ -161,6 +161,48 @@ class TREE_PT_output(_TreePanel, bpy.types.Panel):
             sub.label(text=f"Last tree: {props.leaf_polygons:,} leaf polygons", icon="INFO")
 
 
+class TREE_PT_generate(_TreePanel, bpy.types.Panel):
+    bl_label = "Generate"
+    bl_parent_id = "TREE_PT_main"
+
+    def draw(self, context):
+        from ..operators import reconstruct_op
+        props = context.scene.tree_video
+        col = self.column()
+        col.prop(props, "species_source")
+        if props.species_source == "LIBRARY":
+            col.prop(props, "species_name")
+        elif props.species_source == "FILE":
+            col.prop(props, "species_path")
+        elif reconstruct_op.LAST_TREE.get("tree") is None:
+            col.label(text="Reconstruct a tree first", icon="ERROR")
+        col.operator("tree_video.save_species", icon="FILE_TICK")
+        col.separator()
+        col.prop(props, "envelope_source")
+        if props.envelope_source == "IMAGE":
+            col.prop(props, "envelope_image")
+        elif props.envelope_source == "CURVE":
+            col.prop(props, "envelope_curve")
+        col.prop(props, "gen_seed")
+        col.prop(props, "gen_height")
+        col.prop(props, "gen_nodes")
+        col.prop(props, "gen_frames")
+        col.prop(props, "gen_leaf_density", slider=True)
+        col.prop(props, "gen_wind")
+        col.prop(props, "gen_audio")
+        col.operator("tree_video.generate", icon="OUTLINER_OB_FORCE_FIELD")
+        col.separator()
+        col.prop(props, "forest_name")
+        col.prop(props, "forest_count")
+        col.prop(props, "forest_spacing")
+        col.prop(props, "forest_ground")
+        if props.forest_ground is None:
+            row = col.row(align=True)
+            row.prop(props, "forest_width")
+            row.prop(props, "forest_depth")
+        col.operator("tree_video.generate_forest", icon="OUTLINER_COLLECTION")
+
+
 class TREE_PT_export(_TreePanel, bpy.types.Panel):
     bl_label = "Export"
     bl_parent_id = "TREE_PT_main"
@@ -176,6 +218,7 @@ class TREE_PT_export(_TreePanel, bpy.types.Panel):
         col.operator("tree_video.trace_skeleton", icon="FILE", text="Save 2D Skeleton (.npz)")
 
 
-classes = (TREE_PT_main, TREE_PT_source, TREE_PT_outline, TREE_PT_reconstruction, TREE_PT_output, TREE_PT_export)
+classes = (TREE_PT_main, TREE_PT_source, TREE_PT_outline, TREE_PT_reconstruction, TREE_PT_output, TREE_PT_generate,
+           TREE_PT_export)
 
 register, unregister = bpy.utils.register_classes_factory(classes)

@@ -9,6 +9,15 @@ from ..core.motion import MotionParams
 _M = MotionParams()
 _L = LiftParams()
 _F = LeafParams()
+_LIBRARY_ITEMS: list = []
+
+
+def _library_items(self, context):
+    """Enum items of the bundled species (kept referenced: Blender requires it for dynamic enums)."""
+    from ..core.pgm import species_library
+    _LIBRARY_ITEMS[:] = [(name, name.title(), f"Species fitted from the '{name}' sample video")
+                         for name in sorted(species_library())] or [("NONE", "None", "No species bundled")]
+    return _LIBRARY_ITEMS
 
 
 class TreeVideoSettings(bpy.types.PropertyGroup):
@@ -108,6 +117,60 @@ class TreeVideoSettings(bpy.types.PropertyGroup):
                                               description="Collection that holds the tree's armature and mesh")
     replace_existing: bpy.props.BoolProperty(name="Replace Existing", default=False,
                                              description="Replace a collection of the same name (else refuse)")
+    # Generate (paper §5)
+    species_source: bpy.props.EnumProperty(
+        name="Species", default="LIBRARY",
+        items=[("LIBRARY", "Library", "A species shipped with the add-on (fitted from the sample videos)"),
+               ("FILE", "File", "A species .json (Save Species writes one from a reconstruction)"),
+               ("RECONSTRUCTION", "Last Reconstruction", "Fit the species to the tree reconstructed in this session")],
+        description="Where the species model (bifurcation and motion statistics) comes from")
+    species_name: bpy.props.EnumProperty(name="Library Species", items=_library_items,
+                                         description="Species fitted from the bundled sample videos")
+    species_path: bpy.props.StringProperty(name="Species File", subtype="FILE_PATH",
+                                           description="Species model .json (human-readable; shareable)")
+    envelope_source: bpy.props.EnumProperty(
+        name="Envelope", default="CIRCLE",
+        items=[("SOURCE", "Source Outline", "The reconstructed tree's own crown envelope"),
+               ("CIRCLE", "Circle", "Topiary: a round crown on a stem"),
+               ("TRIANGLE", "Triangle", "Topiary: a cone"),
+               ("PENTAGON", "Pentagon", "Topiary: a pentagon"),
+               ("HEART", "Heart", "Topiary: a heart"),
+               ("IMAGE", "Image", "Any silhouette image (dark or opaque shape)"),
+               ("CURVE", "Curve", "A closed curve object drawn in the front (X/Z) view")],
+        description="The shape new trees grow into (a surface of revolution of this outline)")
+    envelope_image: bpy.props.StringProperty(name="Silhouette", subtype="FILE_PATH",
+                                             description="Image whose dark or opaque pixels are the crown's shape")
+    envelope_curve: bpy.props.PointerProperty(name="Curve", type=bpy.types.Object,
+                                              poll=lambda self, ob: ob.type == "CURVE",
+                                              description="Closed curve in the X/Z plane, trunk base at its lowest point")
+    gen_seed: bpy.props.IntProperty(name="Seed", default=0, min=0,
+                                    description="Random seed: the same seed grows the same tree")
+    gen_height: bpy.props.FloatProperty(name="Height", default=8.0, min=0.1, max=200.0, unit="LENGTH",
+                                        description="Height of a generated tree (metres)")
+    gen_nodes: bpy.props.IntProperty(name="Nodes", default=200, min=8, max=5000,
+                                     description="Node budget of a generated tree (bones + 1)")
+    gen_leaf_density: bpy.props.FloatProperty(name="Leaf Density", default=1.0, min=0.0, max=1.0, subtype="FACTOR",
+                                              description="Share of the species' leaf clusters (fewer, larger "
+                                                          "clusters; 0: bare)")
+    gen_wind: bpy.props.FloatProperty(name="Wind", default=1.0, min=0.0, max=10.0,
+                                      description="Sway amplitude relative to the source video (2 = twice as strong)")
+    gen_audio: bpy.props.StringProperty(name="Wind Audio", subtype="FILE_PATH",
+                                        description="Optional .wav whose loudness drives the sway (e.g. a windy day)")
+    gen_frames: bpy.props.IntProperty(name="Frames", default=0, min=0, max=100000,
+                                      description="Length of the generated animation in frames (0: the source clip's)")
+    forest_name: bpy.props.StringProperty(name="Forest", default="Forest",
+                                          description="Collection that holds the forest's trees")
+    forest_count: bpy.props.IntProperty(name="Trees", default=12, min=1, max=1000,
+                                        description="Number of trees in the forest")
+    forest_spacing: bpy.props.FloatProperty(name="Spacing", default=6.0, min=0.1, max=1000.0, unit="LENGTH",
+                                            description="Smallest distance between two trees (Poisson-disk)")
+    forest_ground: bpy.props.PointerProperty(name="Ground", type=bpy.types.Object,
+                                             poll=lambda self, ob: ob.type == "MESH",
+                                             description="Mesh to scatter the trees on (empty: an area at the 3D cursor)")
+    forest_width: bpy.props.FloatProperty(name="Width", default=40.0, min=0.1, unit="LENGTH",
+                                          description="Area along X when no ground mesh is chosen (metres)")
+    forest_depth: bpy.props.FloatProperty(name="Depth", default=40.0, min=0.1, unit="LENGTH",
+                                          description="Area along Y when no ground mesh is chosen (metres)")
     # Export
     output_dir: bpy.props.StringProperty(name="Folder", subtype="DIR_PATH", default="//tree_from_video",
                                          description="Folder for exported files")

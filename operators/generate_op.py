@@ -1,0 +1,374 @@
+"""Generate new animated trees of a species (paper §5) in the scene: one tree at the 3D cursor, or a
+forest scattered on a ground mesh or an area, each a distinct sample with its own phase.
+
+Growing runs in a worker thread (like Reconstruct: progress, Esc cancels); a forest is then built
+a few trees per timer tick so Blender stays responsive, and Esc during building removes the trees
+built so far. All trees of a forest share one bark and one leaf material.
+"""
+from __future__ import annotations
+
+import math
+import os
+import time
+
+import bpy
+import numpy as np
+
+from ..core import envelopes, forest, growth, pgm
+from ..core.errors import InputError
+from ..core.job import Job
+from ..core.lift3d import envelope_from_meta
+from ..core.progress import sub_progress
+from . import reconstruct_op
+from .reconstruct_op import _JobOperator, _status
+from .scene_build import build_tree, remove_collection
+
+#: seconds of building per timer tick while a forest is built
+BUILD_SLICE_S = 0.15
+
+
+# ----------------------------------------------------------------------------- inputs
+
+def species_from(props):
+    """``(model or None, tree or None)``: the species to grow. A library or file species is loaded
+    here (fast); for the last reconstruction the tree is returned and fitted in the worker."""
+    src = props.species_source
+    if src == "LIBRARY":
+        lib = pgm.species_library()
+        if props.species_name not in lib:
+            raise InputError(f"no species '{props.species_name}' in the library ({', '.join(sorted(lib))}); "
+                             "pick one of those or a species file")
+        return pgm.load_species(lib[props.species_name]), None
+    if src == "FILE":
+        if not props.species_path:
+            raise InputError("no species file chosen; pick a .json written by Save Species, or use the library")
+        return pgm.load_species(bpy.path.abspath(props.species_path)), None
+    tree = reconstruct_op.LAST_TREE.get("tree")
+    if tree is None:
+        raise InputError("no reconstruction in this session; press Reconstruct first, or pick a species "
+                         "from the library or a file")
+    return None, tree
+
+
+def envelope_spec(props, tree=None):
+    """What :func:`envelopes.envelope_from_any` takes: a shape name, an image path, a polygon
+    ``(M, 2)`` (x, z metres) or the reconstruction's envelope."""
+    src = props.envelope_source
+    if src == "SOURCE":
+        tree = tree if tree is not None else reconstruct_op.LAST_TREE.get("tree")
+        env = envelope_from_meta(tree.meta) if tree is not None else None
+        if env is None:
+            raise InputError("the source outline needs a reconstruction in this session; press Reconstruct "
+                             "first or pick a shape, an image or a curve")
+        return env
+    if src == "IMAGE":
+        path = bpy.path.abspath(props.envelope_image)
+        if not props.envelope_image or not os.path.isfile(path):
+            raise InputError(f"envelope image '{props.envelope_image}' does not exist; pick a silhouette image "
+                             "(dark or opaque shape on white or transparent)")
+        return path
+    if src == "CURVE":
+        return curve_polygon(props.envelope_curve)
+    return src.lower()
+
+
+def curve_polygon(ob) -> np.ndarray:
+    """``(M, 2)`` (x, z) world metres of a closed curve object drawn in the front (X/Z) view."""
+    if ob is None or ob.type != "CURVE":
+        raise InputError("no curve chosen for the envelope; draw a closed curve in the front view "
+                         "(Add › Curve › Circle, then shape it) and pick it")
+    dg = bpy.context.evaluated_depsgraph_get()
+    ev = ob.evaluated_get(dg)
+    me = ev.to_mesh()
+    try:
+        co = np.empty(len(me.vertices) * 3, np.float32)
+        me.vertices.foreach_get("co", co)
+    finally:
+        ev.to_mesh_clear()
+    co = co.reshape(-1, 3).astype(np.float64)
+    if len(co) < 3:
+        raise InputError(f"curve '{ob.name}' has fewer than 3 points; draw a closed shape around the crown")
+    mw = np.array(ob.matrix_world)
+    world = co @ mw[:3, :3].T + mw[:3, 3]
+    return world[:, [0, 2]]
+
+
+def grow_params(props, model_frames: int | None = None) -> growth.GrowParams:
+    frames = props.gen_frames or model_frames or 250
+    return growth.GrowParams(seed=props.gen_seed, height_m=props.gen_height, node_budget=props.gen_nodes,
+                             n_frames=int(frames), wind=props.gen_wind,
+                             leaf_density=props.gen_leaf_density if props.build_leaves else 0.0)
+
+
+def audio_path(props) -> str | None:
+    if not props.gen_audio:
+        return None
+    path = bpy.path.abspath(props.gen_audio)
+    if not os.path.isfile(path):
+        raise InputError(f"audio file '{props.gen_audio}' does not exist; pick a .wav (e.g. a windy-day "
+                         "recording) or clear the field")
+    return path
+
+
+def ground_triangles(ob) -> np.ndarray:
+    """``(T, 3, 3)`` world-space triangles of a mesh object (its evaluated mesh)."""
+    if ob is None or ob.type != "MESH":
+        raise InputError("no ground mesh chosen; pick a mesh with faces, or clear it to use an area")
+    dg = bpy.context.evaluated_depsgraph_get()
+    ev = ob.evaluated_get(dg)
+    me = ev.to_mesh()
+    try:
+        me.calc_loop_triangles()
+        co = np.empty(len(me.vertices) * 3, np.float32)
+        me.vertices.foreach_get("co", co)
+        tri = np.empty(len(me.loop_triangles) * 3, np.int32)
+        me.loop_triangles.foreach_get("vertices", tri)
+    finally:
+        ev.to_mesh_clear()
+    mw = np.array(ob.matrix_world)
+    world = co.reshape(-1, 3).astype(np.float64) @ mw[:3, :3].T + mw[:3, 3]
+    return world[tri.reshape(-1, 3)]
+
+
+def unique_collection_name(base: str) -> str:
+    name, k = base, 1
+    while bpy.data.collections.get(name) is not None:
+        name = f"{base}.{k:03d}"
+        k += 1
+    return name
+
+
+def _grow_work(model, tree_src, spec, params, audio, n_slots=None, slots_fn=None):
+    """Worker: fit the species if needed, build the envelope, grow one tree or a forest."""
+    def work(progress):
+        m = model
+        if m is None:
+            m = pgm.fit_species(tree_src, tree_src.name)
+        p = params
+        env = envelopes.envelope_from_any(spec, p.height_m or 10.0)
+        if slots_fn is None:
+            return m, [growth.grow_tree(m, env, p, audio, progress)], None
+        slots = slots_fn()
+        trees = forest.generate_forest(m, env, slots, p, audio, sub_progress(progress, 0.0, 1.0))
+        return m, trees, slots
+    return work
+
+
+# ----------------------------------------------------------------------------- operators
+
+class TREE_OT_generate(_JobOperator, bpy.types.Operator):
+    """Grow a new animated tree of the chosen species inside the chosen envelope, at the 3D cursor (Esc cancels)"""
+
+    bl_idname = "tree_video.generate"
+    bl_label = "Generate Tree"
+    bl_options = {"REGISTER", "UNDO"}
+    what = "generation"
+
+    @classmethod
+    def poll(cls, context):
+        return getattr(context.scene, "tree_video", None) is not None and not reconstruct_op._running()
+
+    def make_job(self, context) -> Job:
+        props = context.scene.tree_video
+        model, tree_src = species_from(props)
+        spec = envelope_spec(props, tree_src)
+        params = grow_params(props, model.n_frames if model is not None else tree_src.n_frames)
+        self._cursor = np.array(context.scene.cursor.location)
+        return Job(_grow_work(model, tree_src, spec, params, audio_path(props)))
+
+    def done(self, context, result):
+        model, trees, _ = result
+        tree = trees[0]
+        name = unique_collection_name(f"{model.name} {context.scene.tree_video.gen_seed}")
+        try:
+            built = build_tree(context, tree, name)
+        except InputError as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        built["armature"].location = getattr(self, "_cursor", np.zeros(3))
+        self.report({"INFO"}, f"'{name}': {tree.n_nodes - 1} branch bones, "
+                              f"{tree.leaves.count if tree.leaves is not None else 0} leaf clusters × {tree.n_frames} frames")
+        return {"FINISHED"}
+
+
+class TREE_OT_generate_forest(_JobOperator, bpy.types.Operator):
+    """Scatter distinct animated trees of the species on the ground mesh (or an area at the 3D cursor), Poisson-disk spaced, each swaying with its own phase (Esc cancels)"""
+
+    bl_idname = "tree_video.generate_forest"
+    bl_label = "Generate Forest"
+    bl_options = {"REGISTER", "UNDO"}
+    what = "forest"
+
+    _pending = None
+
+    @classmethod
+    def poll(cls, context):
+        return TREE_OT_generate.poll(context)
+
+    def make_job(self, context) -> Job:
+        props = context.scene.tree_video
+        model, tree_src = species_from(props)
+        spec = envelope_spec(props, tree_src)
+        params = grow_params(props, model.n_frames if model is not None else tree_src.n_frames)
+        audio = audio_path(props)
+        n, spacing, seed = props.forest_count, props.forest_spacing, props.gen_seed
+        if props.forest_ground is not None:
+            tris = ground_triangles(props.forest_ground)
+
+            def positions():
+                return forest.scatter_on_mesh(n, tris, spacing, seed)
+        else:
+            cursor = np.array(context.scene.cursor.location)
+            w, d = props.forest_width, props.forest_depth
+
+            def positions():
+                xy = forest.scatter_area(n, w, d, spacing, seed)
+                return np.concatenate([xy + cursor[:2], np.full((len(xy), 1), cursor[2])], axis=1)
+        self._name = unique_collection_name(props.forest_name.strip() or "Forest")
+        return Job(_grow_work(model, tree_src, spec, params, audio,
+                              slots_fn=lambda: forest.forest_slots(positions(), seed)))
+
+    # the worker's trees are built on the main thread: all at once (execute) or a few per tick (invoke)
+    def done(self, context, result):
+        state = _ForestBuild(context, self._name, *result)
+        if self._timer is None and getattr(self, "_invoked", False):
+            self._pending = state
+            wm = context.window_manager
+            self._timer = wm.event_timer_add(0.01, window=context.window)
+            wm.progress_begin(0, 100)
+            return {"RUNNING_MODAL"}
+        try:
+            while not state.finished:
+                state.step(context, budget_s=math.inf)
+        except BaseException:
+            state.remove()
+            raise
+        return self._report_done(state)
+
+    def invoke(self, context, event):
+        self._invoked = True
+        return super().invoke(context, event)
+
+    def modal(self, context, event):
+        state = self._pending
+        if state is None:
+            return super().modal(context, event)
+        if event.type == "ESC" or context.window_manager.get("tree_video_cancel"):
+            state.remove()
+            self._cleanup(context)
+            self.report({"INFO"}, "forest cancelled; the scene is unchanged")
+            return {"CANCELLED"}
+        if event.type != "TIMER":
+            return {"PASS_THROUGH"}
+        try:
+            state.step(context, BUILD_SLICE_S)
+        except InputError as exc:
+            state.remove()
+            self._cleanup(context)
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        except BaseException:
+            state.remove()
+            self._cleanup(context)
+            raise
+        _status(context, f"building {state.k}/{len(state.trees)}", state.k / max(len(state.trees), 1))
+        context.window_manager.progress_update(int(100 * state.k / max(len(state.trees), 1)))
+        if not state.finished:
+            return {"RUNNING_MODAL"}
+        self._cleanup(context)
+        return self._report_done(state)
+
+    def _report_done(self, state):
+        bones = sum(len(c["armature"].data.bones) for c in state.built)
+        self.report({"INFO"}, f"'{state.coll.name}': {len(state.built)} trees, {bones} bones, "
+                              f"{state.elapsed:.1f} s to build")
+        return {"FINISHED"}
+
+
+class _ForestBuild:
+    """Builds the grown trees into one collection, a few per call; ``remove()`` undoes it all."""
+
+    def __init__(self, context, name: str, model, trees, slots):
+        self.trees, self.slots, self.model = trees, slots, model
+        self.coll = bpy.data.collections.new(name)
+        context.scene.collection.children.link(self.coll)
+        self.built: list[dict] = []
+        self.materials: dict | None = None
+        self.k = 0
+        self.elapsed = 0.0
+
+    @property
+    def finished(self) -> bool:
+        return self.k >= len(self.trees)
+
+    def step(self, context, budget_s: float) -> None:
+        t0 = time.perf_counter()
+        while not self.finished and time.perf_counter() - t0 < budget_s:
+            tree, slot = self.trees[self.k], self.slots[self.k]
+            name = unique_collection_name(f"{self.coll.name} {self.k:03d}")
+            built = build_tree(context, tree, name, materials=self.materials)
+            self.built.append(built)
+            context.scene.collection.children.unlink(built["collection"])
+            self.coll.children.link(built["collection"])
+            rig = built["armature"]
+            rig.location = tuple(slot.position)
+            rig.rotation_euler = (0.0, 0.0, slot.rotation_z)
+            if self.materials is None:
+                self.materials = {"bark": built["material"],
+                                  "leaf": built["leaves"].data.materials[0] if built["leaves"] is not None else None}
+            self.k += 1
+        self.elapsed += time.perf_counter() - t0
+
+    def remove(self) -> None:
+        try:
+            remove_collection(self.coll)
+        except ReferenceError:
+            pass
+
+
+class TREE_OT_save_species(bpy.types.Operator):
+    """Fit the species model (Dirichlet bifurcation ratios and motion spectra) to the last reconstruction and save it as a shareable .json"""
+
+    bl_idname = "tree_video.save_species"
+    bl_label = "Save Species"
+    filepath: bpy.props.StringProperty(subtype="FILE_PATH", options={"SKIP_SAVE"})
+    filter_glob: bpy.props.StringProperty(default="*.json", options={"HIDDEN"})
+    overwrite: bpy.props.BoolProperty(name="Overwrite", default=False, description="Replace an existing file")
+
+    @classmethod
+    def poll(cls, context):
+        if reconstruct_op.LAST_TREE.get("tree") is None:
+            cls.poll_message_set("reconstruct a tree first (its species is fitted from it)")
+            return False
+        return True
+
+    def invoke(self, context, event):
+        if not self.filepath:
+            self.filepath = bpy.path.abspath(f"//{reconstruct_op.LAST_TREE['tree'].name}.json".replace(" ", "_"))
+        context.window_manager.fileselect_add(self)
+        return {"RUNNING_MODAL"}
+
+    def execute(self, context):
+        tree = reconstruct_op.LAST_TREE.get("tree")
+        path = bpy.path.abspath(self.filepath)
+        try:
+            if not path or os.path.isdir(path):
+                raise InputError("no file name given; type a name ending in .json")
+            if not path.lower().endswith(".json"):
+                path += ".json"
+            if os.path.exists(path) and not self.overwrite:
+                raise InputError(f"'{path}' exists; tick Overwrite or choose another name")
+            model = pgm.fit_species(tree, os.path.splitext(os.path.basename(path))[0])
+            pgm.save_species(path, model)
+        except (InputError, OSError) as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        props = context.scene.tree_video
+        props.species_source, props.species_path = "FILE", path
+        self.report({"INFO"}, f"species '{model.name}' ({model.n_bifurcations} bifurcations) saved to {path}")
+        return {"FINISHED"}
+
+
+classes = (TREE_OT_generate, TREE_OT_generate_forest, TREE_OT_save_species)
+
+register, unregister = bpy.utils.register_classes_factory(classes)

@@ -1,0 +1,142 @@
+"""Generate in Blender: one tree at the 3D cursor and a forest on a ground mesh (distinct trees,
+Poisson-disk spaced, shared materials, not swaying in lockstep), Save Species, and clear errors
+that leave the scene unchanged."""
+import json
+import os
+
+import bpy
+import numpy as np
+import pytest
+
+from tree_from_video.core import envelopes, pgm
+from tree_from_video.operators import reconstruct_op
+
+from trees import empty_scene  # noqa: F401  (autouse fixture)
+from trees import broad_tree
+
+
+@pytest.fixture(autouse=True, scope="module")
+def registered():
+    import tree_from_video as pkg
+    pkg.register()
+    yield
+    pkg.unregister()
+
+
+@pytest.fixture(autouse=True)
+def no_last_tree():
+    yield
+    reconstruct_op.LAST_TREE.clear()
+
+
+def _props():
+    p = bpy.context.scene.tree_video
+    p.gen_frames = 48
+    p.gen_nodes = 120
+    return p
+
+
+def _rigs(coll):
+    return [o for o in coll.all_objects if o.type == "ARMATURE"]
+
+
+def _world_tips(rig, frames):
+    """World x of every pose bone's tail over ``frames`` (F, B)."""
+    out = []
+    for f in frames:
+        bpy.context.scene.frame_set(f)
+        mw = np.array(rig.matrix_world)
+        t = np.array([pb.tail for pb in rig.pose.bones if pb.name.startswith("B")]) @ mw[:3, :3].T + mw[:3, 3]
+        out.append(t)
+    return np.array(out)
+
+
+def test_generate_one_tree_at_the_cursor_inside_its_envelope():
+    p = _props()
+    p.envelope_source, p.gen_height, p.gen_seed = "HEART", 6.0, 3
+    bpy.context.scene.cursor.location = (4.0, -2.0, 0.5)
+    assert bpy.ops.tree_video.generate() == {"FINISHED"}
+    coll = bpy.data.collections["broad 3"]
+    rig = _rigs(coll)[0]
+    np.testing.assert_allclose(rig.location, (4.0, -2.0, 0.5))
+    names = [b.name for b in rig.data.bones if b.name.startswith("B")]
+    assert 100 <= len(names) <= 119
+    assert any(b.name.startswith("L") for b in rig.data.bones)          # the species' leaves
+    bpy.context.scene.frame_set(1)
+    heads = np.array([rig.pose.bones[n].tail for n in names])            # armature space = tree space
+    env = envelopes.topiary("heart", 6.0)
+    inside = env.contains(heads, tol=0.02 * 6.0).mean()
+    print(f"\n{len(names)} bones, {100 * inside:.1f}% of the nodes inside the heart")
+    assert inside >= 0.99
+
+
+def test_forest_on_a_ground_mesh(tmp_path):
+    p = _props()
+    bpy.ops.mesh.primitive_plane_add(size=50, location=(10.0, 0.0, 2.0))
+    ground = bpy.context.active_object
+    p.forest_ground, p.forest_count, p.forest_spacing, p.gen_seed = ground, 5, 8.0, 11
+    p.envelope_source = "CIRCLE"
+    assert bpy.ops.tree_video.generate_forest() == {"FINISHED"}
+    forest = bpy.data.collections["Forest"]
+    trees = list(forest.children)
+    assert len(trees) == 5
+    rigs = [_rigs(c)[0] for c in trees]
+    pos = np.array([r.location for r in rigs])
+    assert np.allclose(pos[:, 2], 2.0) and np.all(np.abs(pos[:, 0] - 10.0) <= 25.0) and np.all(np.abs(pos[:, 1]) <= 25.0)
+    d = np.linalg.norm(pos[:, None, :2] - pos[None, :, :2], axis=-1)[np.triu_indices(5, 1)]
+    assert d.min() >= 8.0 - 1e-6
+    # one bark and one leaf material for the whole forest
+    mats = {m.name for c in trees for o in c.objects if o.type == "MESH" for m in o.data.materials}
+    assert len(mats) == 2
+    # distinct trees that do not sway in lockstep
+    counts = [len(r.data.bones) for r in rigs]
+    assert len(set(counts)) > 1
+    assert min(sum(b.name.startswith("B") for b in r.data.bones) for r in rigs) >= 60     # no bare poles
+    a, b = (_world_tips(r, range(1, 49, 2)) for r in rigs[:2])
+    sa = (a - a[0])[..., 0].mean(1)
+    sb = (b - b[0])[..., 0].mean(1)
+    corr = np.corrcoef(sa, sb)[0, 1]
+    print(f"\nforest: bones {counts}, min spacing {d.min():.1f} m, sway correlation of two trees {corr:.2f}")
+    assert abs(corr) < 0.9
+
+
+def test_bad_inputs_report_and_leave_the_scene_unchanged(tmp_path):
+    p = _props()
+    before = (len(bpy.data.objects), len(bpy.data.collections))
+    cases = [("species_source", "FILE", "species_path", str(tmp_path / "none.json"), "not readable|does not exist|species"),
+             ("species_source", "RECONSTRUCTION", None, None, "Reconstruct first"),
+             ("envelope_source", "SOURCE", None, None, "reconstruction"),
+             ("envelope_source", "IMAGE", "envelope_image", str(tmp_path / "none.png"), "does not exist"),
+             ("gen_audio", str(tmp_path / "none.wav"), None, None, "does not exist")]
+    for key, value, key2, value2, msg in cases:
+        bpy.ops.wm.read_factory_settings(use_empty=True)
+        p = _props()
+        setattr(p, key, value)
+        if key2:
+            setattr(p, key2, value2)
+        with pytest.raises(RuntimeError, match=msg):
+            bpy.ops.tree_video.generate()
+        assert (len(bpy.data.objects), len(bpy.data.collections)) == before
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    p = _props()
+    p.forest_count, p.forest_spacing, p.forest_width, p.forest_depth = 50, 10.0, 20.0, 20.0
+    with pytest.raises(RuntimeError, match="fit"):
+        bpy.ops.tree_video.generate_forest()
+    assert len(bpy.data.objects) == 0 and len(bpy.data.collections) == 0
+
+
+def test_save_species_from_the_last_reconstruction(tmp_path):
+    tree = broad_tree(120)
+    reconstruct_op.LAST_TREE["tree"] = tree
+    path = tmp_path / "mine.json"
+    assert bpy.ops.tree_video.save_species(filepath=str(path)) == {"FINISHED"}
+    model = pgm.load_species(path)
+    assert model.name == "mine" and model.n_bifurcations > 10
+    assert json.loads(path.read_text())["format"] == "tree_from_video.species"
+    p = bpy.context.scene.tree_video
+    assert p.species_source == "FILE" and os.path.samefile(p.species_path, path)
+    with pytest.raises(RuntimeError, match="exists"):
+        bpy.ops.tree_video.save_species(filepath=str(path))
+    # and a tree grows from it
+    p.gen_frames, p.gen_nodes = 24, 60
+    assert bpy.ops.tree_video.generate() == {"FINISHED"}
