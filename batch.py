@@ -220,7 +220,7 @@ def _generate_from_tree(args, pkg, plan, tree, name, outputs, wanted) -> int:
     from importlib import import_module
     pgm = import_module(f"{pkg.__name__}.core.pgm")
     lift3d = import_module(f"{pkg.__name__}.core.lift3d")
-    plan.model = pgm.fit_species(tree, name)
+    plan.model = pgm.fit_species(plan.gb.without_twigs(tree), name)
     plan.species_label = os.path.join(args.out, plan.gb.SPECIES_FILE)
     pgm.save_species(plan.species_label, plan.model)
     if not args.quiet:

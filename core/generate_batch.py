@@ -127,6 +127,19 @@ def check_audio(path: str) -> None:
     audio_envelope(path, 24.0, 24)
 
 
+def without_twigs(tree):
+    """The reconstructed branches of ``tree`` without the twigs copied onto them (they are appended
+    after ``meta["twigs"]["first_node"]``): what a species is fitted from, as for the shipped library
+    (twigs would halve the branch scale it learns and the trees would stop growing at 60 % of Ω')."""
+    import dataclasses
+    first = (tree.meta.get("twigs") or {}).get("first_node")
+    if not first or first >= tree.n_nodes:
+        return tree
+    n = int(first)
+    return dataclasses.replace(tree, parents=tree.parents[:n], nodes3d=tree.nodes3d[:, :n],
+                               radius=tree.radius[:n], level=tree.level[:n])
+
+
 def n_frames_for(req: GenerateRequest, model) -> int:
     if req.frames_out is not None:
         return int(req.frames_out)
