@@ -191,6 +191,8 @@ def _run_generation(args, plan, outputs, wanted) -> int:
     write = None
     if outputs is not None:
         def write(tree, folder):
+            tree.meta["mesh"] = {"curliness": float(args.curliness), "bark": args.bark,     # the branch mesh's look
+                                 "seed": int(tree.meta.get("seed", 0))}
             return outputs.write_outputs(tree, folder, wanted, overwrite=args.force, fresh_scene=True,
                                          report=log, leaf_image=args.leaf_image)
     t0 = time.monotonic()

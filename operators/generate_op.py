@@ -21,7 +21,7 @@ from ..core.lift3d import envelope_from_meta
 from ..core.progress import sub_progress
 from . import reconstruct_op
 from .reconstruct_op import _JobOperator, _status
-from .scene_build import build_tree, remove_collection
+from .scene_build import _set_scene_timing, build_tree, remove_collection
 
 #: seconds of building per timer tick while a forest is built
 BUILD_SLICE_S = 0.15
@@ -181,7 +181,8 @@ class TREE_OT_generate(_JobOperator, bpy.types.Operator):
         tree = trees[0]
         name = unique_collection_name(f"{model.name} {context.scene.tree_video.gen_seed}")
         try:
-            built = build_tree(context, tree, name)
+            built = build_tree(context, tree, name, curliness=context.scene.tree_video.curliness,
+                               bark=context.scene.tree_video.bark)
         except InputError as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
@@ -306,10 +307,19 @@ class _ForestBuild:
         while not self.finished and time.perf_counter() - t0 < budget_s:
             tree, slot = self.trees[self.k], self.slots[self.k]
             name = unique_collection_name(f"{self.coll.name} {self.k:03d}")
-            built = build_tree(context, tree, name, materials=self.materials)
+            props = context.scene.tree_video
+            # each tree is built in a scratch scene: its edit-mode switches then update a view layer
+            # holding one tree, not the whole forest so far (that made building quadratic)
+            scratch = bpy.data.scenes.new("Tree from Video build")
+            try:
+                with context.temp_override(scene=scratch, view_layer=scratch.view_layers[0]):
+                    built = build_tree(bpy.context, tree, name, materials=self.materials,
+                                       curliness=props.curliness, bark=props.bark, update_frame=False)
+                scratch.collection.children.unlink(built["collection"])
+                self.coll.children.link(built["collection"])
+            finally:
+                bpy.data.scenes.remove(scratch)
             self.built.append(built)
-            context.scene.collection.children.unlink(built["collection"])
-            self.coll.children.link(built["collection"])
             rig = built["armature"]
             rig.location = tuple(slot.position)
             rig.rotation_euler = (0.0, 0.0, slot.rotation_z)
@@ -317,6 +327,10 @@ class _ForestBuild:
                 self.materials = {"bark": built["material"],
                                   "leaf": built["leaves"].data.materials[0] if built["leaves"] is not None else None}
             self.k += 1
+        if self.finished:
+            scene = context.scene
+            _set_scene_timing(scene, self.trees[0].fps, max(t.n_frames for t in self.trees))
+            scene.frame_set(scene.frame_start)
         self.elapsed += time.perf_counter() - t0
 
     def remove(self) -> None:

@@ -25,35 +25,28 @@ def leaf_bone_names(count: int) -> list[str]:
     return [f"L{k:04d}" for k in range(count)]
 
 
-def add_leaf_bones(context, rig, tree: Tree3D) -> list[str]:
-    """In edit mode, one bone per leaf cluster: head at the cluster centre, tail along its main axis
-    (``radius`` long), parented (not connected) to the bone of the cluster's node. Returns the
-    bone names (``L0000``…) in cluster order."""
+def add_leaf_edit_bones(data, tree: Tree3D) -> list[str]:
+    """With the armature ``data`` in edit mode, one bone per leaf cluster: head at the cluster
+    centre, tail along its main axis (``radius`` long), parented (not connected) to the bone of the
+    cluster's node. Returns the bone names (``L0000``…) in cluster order."""
     lv = tree.leaves
     names = leaf_bone_names(lv.count)
     parent_names = {int(c): n for c, n in zip(bn.bone_edges(tree.parents)[:, 1], bn.bone_names(tree.parents))}
     missing = sorted(set(int(n) for n in np.unique(lv.node)) - set(parent_names))
     if missing:
         raise RuntimeError(f"leaf clusters sit on nodes without a bone: {missing[:5]}")
-    view_layer = context.view_layer
-    view_layer.objects.active = rig
-    bpy.ops.object.mode_set(mode="EDIT")
-    try:
-        ebones = rig.data.edit_bones
-        existing = {b.name: b for b in ebones}
-        new = [ebones.new(n) for n in names]
-        head = lv.pos.astype(np.float32)
-        tail = head + lv.axis.astype(np.float32) * np.float32(max(lv.radius, 1e-4))
-        ebones.foreach_set("head", np.concatenate([_edit_get(ebones, "head", len(existing)), head.ravel()]))
-        ebones.foreach_set("tail", np.concatenate([_edit_get(ebones, "tail", len(existing)), tail.ravel()]))
-        for eb, node in zip(new, lv.node):
-            eb.parent = existing[parent_names[int(node)]]
-            eb.use_connect = False
-            eb.use_deform = True
-    finally:
-        bpy.ops.object.mode_set(mode="OBJECT")
-    quaternion = bpy.types.PoseBone.bl_rna.properties["rotation_mode"].enum_items["QUATERNION"].value
-    rig.pose.bones.foreach_set("rotation_mode", np.full(len(rig.pose.bones), quaternion, np.int32))
+    ebones = data.edit_bones
+    existing = {b.name: b for b in ebones}
+    new = [ebones.new(n) for n in names]
+    head = lv.pos.astype(np.float32)
+    tail = head + lv.axis.astype(np.float32) * np.float32(max(lv.radius, 1e-4))
+    ebones.foreach_set("head", np.concatenate([_edit_get(ebones, "head", len(existing)), head.ravel()]))
+    ebones.foreach_set("tail", np.concatenate([_edit_get(ebones, "tail", len(existing)), tail.ravel()]))
+    ebones.foreach_set("roll", np.zeros(len(ebones), np.float32))
+    for eb, node in zip(new, lv.node):
+        eb.parent = existing[parent_names[int(node)]]
+        eb.use_connect = False
+        eb.use_deform = True
     return names
 
 
@@ -74,12 +67,14 @@ def flutter_quaternions(angles: np.ndarray) -> np.ndarray:
 
 
 def key_leaf_bones(rig, make_fcurve, tree: Tree3D, names: list[str]) -> None:
-    """Key every leaf bone's flutter at scene frames ``1..F`` (LINEAR, bulk)."""
+    """Key every leaf bone's flutter at scene frames ``1..F`` (LINEAR, bulk): only the W and Y
+    channels — a turn about the bone's own Y axis leaves X and Z at their rest value 0, and half
+    the F-curves is half the keying time of a leafy forest."""
     q = flutter_quaternions(tree.leaves.flutter)
     frames = np.arange(1, q.shape[0] + 1, dtype=np.float32)
     for s, name in enumerate(names):
         path = f'pose.bones["{bpy.utils.escape_identifier(name)}"].rotation_quaternion'
-        for i in range(4):
+        for i in (0, 2):
             action_api.write_keys(make_fcurve(path, i, name), frames, q[:, s, i])
 
 

@@ -26,7 +26,7 @@ MAX_NAME = 63
 def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = False,
                mesh: bool = True, sides: int = 8, leaves: bool = True,
                leaf_image: str | None = None, curliness: float | None = None,
-               bark: str | None = None, materials: dict | None = None) -> dict:
+               bark: str | None = None, materials: dict | None = None, update_frame: bool = True) -> dict:
     """Create the animated tree in a new collection ``collection_name`` under the scene collection.
 
     Creates an armature object ``"<name> Rig"`` (one bone per edge, ``"B{child:03d}"``, rest pose =
@@ -46,7 +46,8 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
     old tree as it was).
 
     ``materials`` ``{"bark": Material, "leaf": Material}`` reuses existing materials (a forest
-    shares one bark and one leaf material) instead of creating them.
+    shares one bark and one leaf material) instead of creating them. ``update_frame=False`` skips
+    evaluating the scene at its first frame at the end (a forest does it once after all trees).
 
     Returns ``{"collection", "armature", "mesh" (or None), "action", "material" (or None),
     "leaves" (or None), "leaf_polygons", "timings"}`` with ``timings`` in seconds (``rotations``,
@@ -73,8 +74,9 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
         scene.collection.children.link(coll)
 
         t = time.perf_counter()
-        rig, rest = _build_armature(context, tree, coll, names["rig"], created)
-        leaf_names = leaves_build.add_leaf_bones(context, rig, tree) if with_leaves else []
+        rig, rest, leaf_names = _build_armature(
+            context, tree, coll, names["rig"], created,
+            (lambda data: leaves_build.add_leaf_edit_bones(data, tree)) if with_leaves else None)
         timings["armature"] = time.perf_counter() - t
 
         t = time.perf_counter()
@@ -124,7 +126,8 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
         for ob in coll.objects:
             ob.select_set(True)
         context.view_layer.objects.active = rig
-        scene.frame_set(scene.frame_start)
+        if update_frame:
+            scene.frame_set(scene.frame_start)
     except BaseException:
         created.remove(context)
         raise
@@ -233,8 +236,10 @@ def _data_collection(id_):
 
 # ----------------------------------------------------------------------------- armature
 
-def _build_armature(context, tree: Tree3D, coll, name: str, created: _Created):
-    """Armature object with one connected bone per edge at frame-0 positions.
+def _build_armature(context, tree: Tree3D, coll, name: str, created: _Created, extra_edit=None):
+    """Armature object with one connected bone per edge at frame-0 positions; ``extra_edit(data)``
+    adds more bones in the same edit-mode session (each mode switch updates the whole view layer,
+    which is what made forests slow).
 
     Returns ``(object, rest (B, 3, 3))``: rest rotations read back from ``bone.matrix_local`` in
     :func:`bones.bone_edges` order."""
@@ -250,21 +255,25 @@ def _build_armature(context, tree: Tree3D, coll, name: str, created: _Created):
     deselect_all(view_layer)
     rig.select_set(True)
     view_layer.objects.active = rig
-    bpy.ops.object.mode_set(mode="EDIT")
-    _edit_bones(data, names, rest_pos[edges[:, 0]], rest_pos[edges[:, 1]], parent_bone)
-    bpy.ops.object.mode_set(mode="OBJECT")
+    with context.temp_override(active_object=rig, object=rig, edit_object=rig):   # also in a scratch scene
+        bpy.ops.object.mode_set(mode="EDIT")
+        try:
+            _edit_bones(data, names, rest_pos[edges[:, 0]], rest_pos[edges[:, 1]], parent_bone)
+            extra = extra_edit(data) if extra_edit is not None else []
+        finally:
+            bpy.ops.object.mode_set(mode="OBJECT")
 
     order = {b.name: i for i, b in enumerate(data.bones)}
-    if len(order) != len(names):
-        raise RuntimeError(f"the armature has {len(order)} bones, expected {len(names)}")
+    if len(order) != len(names) + len(extra):
+        raise RuntimeError(f"the armature has {len(order)} bones, expected {len(names) + len(extra)}")
     flat = np.empty(len(order) * 16, np.float32)
     data.bones.foreach_get("matrix_local", flat)
     mats = flat.reshape(-1, 4, 4).transpose(0, 2, 1)         # foreach_get is column-major
     rest = mats[[order[n] for n in names], :3, :3].astype(np.float64)
 
     quaternion = bpy.types.PoseBone.bl_rna.properties["rotation_mode"].enum_items["QUATERNION"].value
-    rig.pose.bones.foreach_set("rotation_mode", np.full(len(names), quaternion, np.int32))
-    return rig, rest
+    rig.pose.bones.foreach_set("rotation_mode", np.full(len(order), quaternion, np.int32))
+    return rig, rest, extra
 
 
 def _edit_bones(data, names: list[str], heads: np.ndarray, tails: np.ndarray, parent_bone: np.ndarray) -> None:

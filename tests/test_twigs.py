@@ -245,7 +245,7 @@ def test_batch_flags_reach_the_settings(tmp_path):
                                             "--curliness", "0.5", "--bark", "smooth"])
     assert (args.twigs, args.curliness, args.bark) == (2, 0.5, "smooth")
     defaults = batch.build_parser().parse_args(["v.mp4", "--outline", "o.json", "--out", "x"])
-    assert (defaults.twigs, defaults.curliness, defaults.bark) == (0, 0.0, "none")   # today's output
+    assert (defaults.twigs, defaults.curliness, defaults.bark) == (2, 0.3, "rough")   # as the panel
     for bad in (["--twigs", "9"], ["--curliness", "2"]):
         out = tmp_path / "out"
         assert batch.main(["missing.mp4", "--outline", "o.json", "--out", str(out), *bad]) == 2

@@ -25,7 +25,8 @@ args = ["-q", "-p", "no:cacheprovider", "-o", "cache_dir=/tmp/tfv_pytest_cache",
         os.path.join(TESTS, "test_sample_run.py"), os.path.join(TESTS, "test_scene.py"),
         os.path.join(TESTS, "test_exports.py"), os.path.join(TESTS, "test_annotation_outline.py"),
         os.path.join(TESTS, "test_twigs.py"), os.path.join(TESTS, "test_branch_mesh.py"),
-        os.path.join(TESTS, "test_leaves_scene.py")]
+        os.path.join(TESTS, "test_leaves_scene.py"), os.path.join(TESTS, "test_generate_op.py"),
+        os.path.join(TESTS, "test_generate_batch.py")]
 chosen = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []   # e.g. -- tests/test_x.py -s
 if chosen:
     args = args[:5] + chosen
