@@ -174,6 +174,11 @@ class TREE_OT_generate(_JobOperator, bpy.types.Operator):
         spec = envelope_spec(props, tree_src)
         params = grow_params(props, model.n_frames if model is not None else tree_src.n_frames)
         self._cursor = np.array(context.scene.cursor.location)
+        if props.envelope_source == "CURVE":          # grow at the curve's size, standing where it is drawn
+            spec = envelopes.envelope_from_polygon(spec)
+            params.height_m = None
+            y = float(np.array(props.envelope_curve.matrix_world)[1, 3])
+            self._cursor = np.array([spec.offset[0], y, spec.offset[1]])
         return Job(_grow_work(model, tree_src, spec, params, audio_path(props)))
 
     def done(self, context, result):

@@ -70,6 +70,25 @@ def test_generate_one_tree_at_the_cursor_inside_its_envelope():
     assert inside >= 0.99
 
 
+def test_generate_inside_a_curve_drawn_in_the_front_view():
+    """A closed curve in the X/Z plane (a circle of radius 3 m around (5, 4)): the tree grows at
+    the curve's size and stands at its lowest point, every node inside the drawn circle."""
+    import math
+    p = _props()
+    bpy.ops.curve.primitive_bezier_circle_add(radius=3.0, location=(5.0, 1.0, 4.0), rotation=(math.pi / 2, 0, 0))
+    p.envelope_source, p.envelope_curve = "CURVE", bpy.context.active_object
+    assert bpy.ops.tree_video.generate() == {"FINISHED"}
+    rig = next(o for o in bpy.data.objects if o.type == "ARMATURE")
+    np.testing.assert_allclose(rig.location, (5.0, 1.0, 1.0), atol=0.05)
+    bpy.context.scene.frame_set(1)
+    mw = np.array(rig.matrix_world)
+    tails = np.array([pb.tail for pb in rig.pose.bones if pb.name.startswith("B")]) @ mw[:3, :3].T + mw[:3, 3]
+    r = np.hypot(tails[:, 0] - 5.0, tails[:, 2] - 4.0)
+    print(f"\ncurve envelope: {len(tails)} nodes, farthest {r.max():.2f} m from the circle's centre (radius 3)")
+    assert r.max() <= 3.0 * 1.03
+    assert np.ptp(tails[:, 2]) >= 0.7 * 6.0                 # it fills the curve's height
+
+
 def test_forest_on_a_ground_mesh(tmp_path):
     p = _props()
     bpy.ops.mesh.primitive_plane_add(size=50, location=(10.0, 0.0, 2.0))
