@@ -9,7 +9,6 @@ import numpy as np
 import pytest
 
 from tree_from_video.core import envelopes, pgm
-from tree_from_video.operators import reconstruct_op
 
 from trees import empty_scene  # noqa: F401  (autouse fixture)
 from trees import broad_tree
@@ -23,10 +22,18 @@ def registered():
     pkg.unregister()
 
 
+def last_tree() -> dict:
+    """The live ``LAST_TREE`` of reconstruct_op: unregistering deletes the operator modules from
+    sys.modules (register_submodule_factory), so a module imported at collection time may be stale."""
+    import importlib
+    return importlib.import_module("tree_from_video.operators.reconstruct_op").LAST_TREE
+
+
 @pytest.fixture(autouse=True)
 def no_last_tree():
+    last_tree().clear()
     yield
-    reconstruct_op.LAST_TREE.clear()
+    last_tree().clear()
 
 
 def _props():
@@ -146,7 +153,7 @@ def test_bad_inputs_report_and_leave_the_scene_unchanged(tmp_path):
 
 def test_save_species_from_the_last_reconstruction(tmp_path):
     tree = broad_tree(120)
-    reconstruct_op.LAST_TREE["tree"] = tree
+    last_tree()["tree"] = tree
     path = tmp_path / "mine.json"
     assert bpy.ops.tree_video.save_species(filepath=str(path)) == {"FINISHED"}
     model = pgm.load_species(path)
