@@ -21,7 +21,7 @@ from ..core.lift3d import envelope_from_meta
 from ..core.progress import sub_progress
 from . import reconstruct_op
 from .reconstruct_op import _JobOperator, _status
-from .scene_build import _set_scene_timing, build_tree, remove_collection
+from .scene_build import _set_scene_timing, build_tree, deselect_all, remove_collection
 
 #: seconds of building per timer tick while a forest is built
 BUILD_SLICE_S = 0.15
@@ -72,24 +72,35 @@ def envelope_spec(props, tree=None):
     return src.lower()
 
 
-def curve_polygon(ob) -> np.ndarray:
-    """``(M, 2)`` (x, z) world metres of a closed curve object drawn in the front (X/Z) view."""
-    if ob is None or ob.type != "CURVE":
-        raise InputError("no curve chosen for the envelope; draw a closed curve in the front view "
-                         "(Add › Curve › Circle, then shape it) and pick it")
+def _evaluated_mesh(ob, triangles: bool = False):
+    """World-space vertices ``(V, 3)`` of ``ob``'s evaluated mesh (curves too), and with
+    ``triangles`` its loop triangles ``(T, 3)`` vertex indices (else None)."""
     dg = bpy.context.evaluated_depsgraph_get()
     ev = ob.evaluated_get(dg)
     me = ev.to_mesh()
     try:
         co = np.empty(len(me.vertices) * 3, np.float32)
         me.vertices.foreach_get("co", co)
+        tri = None
+        if triangles:
+            me.calc_loop_triangles()
+            tri = np.empty(len(me.loop_triangles) * 3, np.int32)
+            me.loop_triangles.foreach_get("vertices", tri)
+            tri = tri.reshape(-1, 3)
     finally:
         ev.to_mesh_clear()
-    co = co.reshape(-1, 3).astype(np.float64)
-    if len(co) < 3:
-        raise InputError(f"curve '{ob.name}' has fewer than 3 points; draw a closed shape around the crown")
     mw = np.array(ob.matrix_world)
-    world = co @ mw[:3, :3].T + mw[:3, 3]
+    return co.reshape(-1, 3).astype(np.float64) @ mw[:3, :3].T + mw[:3, 3], tri
+
+
+def curve_polygon(ob) -> np.ndarray:
+    """``(M, 2)`` (x, z) world metres of a closed curve object drawn in the front (X/Z) view."""
+    if ob is None or ob.type != "CURVE":
+        raise InputError("no curve chosen for the envelope; draw a closed curve in the front view "
+                         "(Add › Curve › Circle, then shape it) and pick it")
+    world, _ = _evaluated_mesh(ob)
+    if len(world) < 3:
+        raise InputError(f"curve '{ob.name}' has fewer than 3 points; draw a closed shape around the crown")
     return world[:, [0, 2]]
 
 
@@ -114,20 +125,8 @@ def ground_triangles(ob) -> np.ndarray:
     """``(T, 3, 3)`` world-space triangles of a mesh object (its evaluated mesh)."""
     if ob is None or ob.type != "MESH":
         raise InputError("no ground mesh chosen; pick a mesh with faces, or clear it to use an area")
-    dg = bpy.context.evaluated_depsgraph_get()
-    ev = ob.evaluated_get(dg)
-    me = ev.to_mesh()
-    try:
-        me.calc_loop_triangles()
-        co = np.empty(len(me.vertices) * 3, np.float32)
-        me.vertices.foreach_get("co", co)
-        tri = np.empty(len(me.loop_triangles) * 3, np.int32)
-        me.loop_triangles.foreach_get("vertices", tri)
-    finally:
-        ev.to_mesh_clear()
-    mw = np.array(ob.matrix_world)
-    world = co.reshape(-1, 3).astype(np.float64) @ mw[:3, :3].T + mw[:3, 3]
-    return world[tri.reshape(-1, 3)]
+    world, tri = _evaluated_mesh(ob, triangles=True)
+    return world[tri]
 
 
 def unique_collection_name(base: str) -> str:
@@ -333,6 +332,7 @@ class _ForestBuild:
                                   "leaf": built["leaves"].data.materials[0] if built["leaves"] is not None else None}
             self.k += 1
         if self.finished:
+            deselect_all(context.view_layer)              # the forest is many objects: select none
             scene = context.scene
             _set_scene_timing(scene, self.trees[0].fps, max(t.n_frames for t in self.trees))
             scene.frame_set(scene.frame_start)

@@ -47,6 +47,11 @@ def add_leaf_edit_bones(data, tree: Tree3D) -> list[str]:
         eb.parent = existing[parent_names[int(node)]]
         eb.use_connect = False
         eb.use_deform = True
+    if hasattr(data, "collections"):               # Blender 4.0+: leaf bones in a hidden bone collection
+        bcoll = data.collections.new("Leaves")      # (hundreds of sticks would hide the tree in the viewport)
+        for eb in new:
+            bcoll.assign(eb)
+        bcoll.is_visible = False
     return names
 
 

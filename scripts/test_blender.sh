@@ -44,6 +44,14 @@ grep -q "reconstruct: {'FINISHED'}" "$OUT/gui.log" || { tail -20 "$OUT/gui.log";
 grep -q "ui ready" "$OUT/gui.log" || { echo "the sidebar never opened on the Tree tab" >&2; exit 1; }
 echo "panel screenshot: $(stat -c %s "$OUT/panel.png") bytes"
 
+echo "== Blender 4.3 GUI: a generated forest and the Generate sub-panel"
+"$RB" gui-shot "$OUT/generate.png" --size 1600x1000 --wait 10 -- \
+  blender --factory-startup --python tests/gui/generate_shot.py > "$OUT/generate.log" 2>&1 \
+  || { tail -20 "$OUT/generate.log"; echo "generate screenshot failed or blank" >&2; exit 1; }
+grep -q "forest: {'FINISHED'}" "$OUT/generate.log" || { tail -20 "$OUT/generate.log"; echo "no forest in the GUI run" >&2; exit 1; }
+grep -q "ui ready" "$OUT/generate.log" || { echo "the sidebar never opened on the Tree tab" >&2; exit 1; }
+echo "generate screenshot: $(stat -c %s "$OUT/generate.png") bytes"
+
 echo "== Blender 4.3 GUI: Track & Preview drawn over the clip in the Movie Clip editor"
 "$RB" gui-shot "$OUT/clip.png" --size 1600x900 --wait 10 -- \
   blender --factory-startup --python tests/gui/clip_shot.py > "$OUT/clip.log" 2>&1 \
@@ -64,7 +72,7 @@ echo "== Blender 4.3 GUI: Reconstruct as a user starts it (INVOKE, modal), then 
   blender --factory-startup --python tests/gui/modal_run.py > "$OUT/modal.log" 2>&1 || true
 grep -E "invoke returned|stages seen|finished" "$OUT/modal.log" || true
 grep -q "invoke returned {'RUNNING_MODAL'}" "$OUT/modal.log" \
-  && grep -q "finished: collection present with 2 objects" "$OUT/modal.log" \
+  && grep -q "finished: collection present with 3 objects" "$OUT/modal.log" \
   || { tail -20 "$OUT/modal.log"; echo "the modal Reconstruct did not finish with the tree" >&2; exit 1; }
 "$RB" gui-shot "$OUT/cancel.png" --size 1200x800 --wait 15 -- \
   blender --factory-startup --python tests/gui/modal_run.py -- --cancel > "$OUT/cancel.log" 2>&1 || true

@@ -6,7 +6,6 @@ import contextlib
 import io
 import json
 import os
-import struct
 
 import cv2
 import numpy as np
@@ -40,16 +39,7 @@ def _inside(poly, pts, tol):
     return np.array([cv2.pointPolygonTest(c, (float(x), float(z)), True) >= -tol for x, z in pts])
 
 
-def read_glb(path):
-    data = open(path, "rb").read()
-    magic, version, length = struct.unpack_from("<4sII", data, 0)
-    assert (magic, version, length) == (b"glTF", 2, len(data))
-    chunks, off = [], 12
-    while off < len(data):
-        size, kind = struct.unpack_from("<II", data, off)
-        chunks.append((kind, data[off + 8:off + 8 + size]))
-        off += 8 + size
-    return json.loads(chunks[0][1]), chunks[1][1]
+from test_exports import read_glb  # noqa: E402  (the same GLB container check)
 
 
 def accessor(doc, binary, index):

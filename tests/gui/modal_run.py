@@ -46,7 +46,8 @@ def watch():
               f"stopped {time.monotonic() - state.get('cancel_sent', time.monotonic()):.2f} s after the request", flush=True)
     else:
         print(f"finished: collection {'present' if coll else 'absent'} with "
-              f"{len(coll.objects) if coll else 0} objects", flush=True)
+              f"{len(coll.objects) if coll else 0} objects (rig, branches, leaves): "
+              f"{sorted(o.name for o in coll.objects) if coll else []}", flush=True)
     print("DONE", flush=True)
     return None
 
