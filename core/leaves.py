@@ -77,7 +77,8 @@ class LeafParams:
     ``cards`` leaf cards (quads) per cluster; ``coverage`` cluster radius as a multiple of the
     median spacing between kept seeds; ``flutter_hz`` ω / 2π; ``flutter_gain`` seconds:
     amplitude A(t) = gain · branch speed(t) / tree height, radians, at most
-    ``flutter_max_deg`` (a tracking glitch must not spin a cluster); ``fill`` adds seeds where the
+    ``flutter_max_deg`` (a tracking glitch must not spin a cluster); ``leaf_hz`` / ``leaf_angle_deg`` every leaf's own flap about its stem
+    (phase per leaf); ``fill`` adds seeds where the
     crown shows foliage colour but no corner (:func:`fill_seeds`); ``seed`` sub-sampling, depths
     and template."""
 
@@ -88,6 +89,8 @@ class LeafParams:
     flutter_hz: float = 2.0
     flutter_gain: float = 4.0
     flutter_max_deg: float = 35.0
+    leaf_hz: float = 4.0
+    leaf_angle_deg: float = 15.0
     fill: bool = True
     seed: int = 0
 
@@ -222,7 +225,7 @@ def place_leaves(tree, points: np.ndarray, frame_bgr: np.ndarray, base_px: np.nd
     colour = sample_colour(frame_bgr, pts)
     return LeafClusters(node.astype(np.int32), pos.astype(np.float32), axis.astype(np.float32), colour,
                         dark.astype(bool), flut, float(radius), float(0.55 * radius), int(p.cards), int(p.seed),
-                        size)
+                        size, min(p.leaf_hz, 0.45 * float(tree.fps)), float(np.radians(p.leaf_angle_deg)))
 
 
 #: Seeds farther than this share of the tree height from every thin branch node are not foliage
@@ -426,4 +429,38 @@ def grow_leaves(tree, info: dict, density: float = 1.0, seed: int = 0, params: L
     flut = flutter_angles(tree, node, beta, hz, p.flutter_gain, np.radians(p.flutter_max_deg))
     dark = (pos[:, 1] - centre[1]) > 0                      # behind the crown centre
     return LeafClusters(node.astype(np.int32), pos.astype(np.float32), axis.astype(np.float32),
-                        colour.astype(np.float32), dark, flut, radius, 0.55 * radius, int(info["cards"]), int(seed))
+                        colour.astype(np.float32), dark, flut, radius, 0.55 * radius, int(info["cards"]), int(seed),
+                        None, min(p.leaf_hz, 0.45 * float(tree.fps)), float(np.radians(p.leaf_angle_deg)))
+
+
+def leaf_flap_offsets(co: np.ndarray, angle: float, seed: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Every leaf's own flap (paper Appendix B.2's per-leaf high-frequency rotation) as two vertex
+    offset fields, for shape keys that skinning carries into every export.
+
+    ``co (4Q, 3)`` the leaf cards' rest vertices (:func:`leaf_mesh`: stem vertices 0, 1 then tip
+    vertices 2, 3 of each card); each card turns by ``angle`` radians about its stem line (through
+    vertices 0 and 1): ``Δ_q`` = rotated − rest (0 on the stem). With a random phase φ_q per card,
+    ``offset(t) = Δ_q sin(ωt + φ_q) = C sin(ωt) + S cos(ωt)`` where ``C = Δ cos φ`` and
+    ``S = Δ sin φ`` — returned as ``C (4Q, 3)``, ``S (4Q, 3)`` and ``φ (Q,)``. (Linear in Δ:
+    exact for the stem, a chord of the arc elsewhere; at 15° the tip's path is 1 % shorter.)"""
+    v = np.asarray(co, np.float64).reshape(-1, 4, 3)
+    pivot = 0.5 * (v[:, 0] + v[:, 1])
+    axis = v[:, 1] - v[:, 0]
+    axis /= np.maximum(np.linalg.norm(axis, axis=1, keepdims=True), 1e-12)
+    r = v - pivot[:, None]
+    c, s = np.cos(angle), np.sin(angle)
+    k = axis[:, None]
+    rot = r * c + np.cross(k, r) * s + k * np.sum(k * r, axis=-1, keepdims=True) * (1 - c)   # Rodrigues
+    delta = rot - r
+    phase = np.random.default_rng([int(seed) & 0xFFFFFFFF, 0xF1A9]).uniform(0, 2 * np.pi, len(v))
+    C = (delta * np.cos(phase)[:, None, None]).reshape(-1, 3)
+    S = (delta * np.sin(phase)[:, None, None]).reshape(-1, 3)
+    return C, S, phase
+
+
+def flap_weights(n_frames: int, fps: float, hz: float) -> np.ndarray:
+    """``(F, 4)`` shape-key weights (all in [0, 1], as every format keeps them) of the keys
+    +C, −C, +S, −S so that their sum is ``C sin(ωt) + S cos(ωt)``, ω = 2π·hz, t = frame / fps."""
+    t = np.arange(n_frames) / float(fps)
+    sn, cs = np.sin(2 * np.pi * hz * t), np.cos(2 * np.pi * hz * t)
+    return np.stack([np.maximum(sn, 0), np.maximum(-sn, 0), np.maximum(cs, 0), np.maximum(-cs, 0)], axis=1)

@@ -29,7 +29,9 @@ class LeafClusters:
     (seed from the shaded half: behind the branches); ``flutter (F, S)`` float32 radians about
     ``axis`` per frame, ``A(t) sin(ωt + β)``; ``radius`` metres of one cluster; ``leaf_size``
     metres of one leaf card's length; ``cards`` leaf cards per cluster; ``seed`` of the template;
-    ``scale (S,)`` each cluster's size relative to ``radius`` (smaller near the outline's edge)."""
+    ``scale (S,)`` each cluster's size relative to ``radius`` (smaller near the outline's edge);
+    ``leaf_hz``, ``leaf_angle`` (radians): every leaf's own high-frequency flap about its stem,
+    ``leaf_angle · sin(2π leaf_hz t + φ_leaf)`` (:func:`.leaves.leaf_flap_offsets`)."""
 
     node: np.ndarray
     pos: np.ndarray
@@ -42,6 +44,9 @@ class LeafClusters:
     cards: int
     seed: int = 0
     scale: np.ndarray | None = None
+    leaf_hz: float = 4.0
+    leaf_angle: float = 0.26
+
 
     def scales(self) -> np.ndarray:
         """``(S,)`` size of each cluster relative to ``radius`` (1 when not set)."""
@@ -126,7 +131,8 @@ def save_tree(path: str | os.PathLike, tree: Tree3D) -> None:
     if tree.leaves is not None:
         lv = tree.leaves
         meta["leaves"] = {"radius": float(lv.radius), "leaf_size": float(lv.leaf_size),
-                          "cards": int(lv.cards), "seed": int(lv.seed)}
+                          "cards": int(lv.cards), "seed": int(lv.seed), "leaf_hz": float(lv.leaf_hz),
+                          "leaf_angle": float(lv.leaf_angle)}
         extra = {f"leaf_{k}": np.asarray(getattr(lv, k) if k != "scale" else lv.scales())
                  for k in LEAF_ARRAYS}
     atomic_savez(path, parents=tree.parents.astype(np.int32), nodes3d=tree.nodes3d.astype(np.float32),

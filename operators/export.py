@@ -71,7 +71,7 @@ def export_usd(path: str | os.PathLike, objects: Iterable[bpy.types.Object], *, 
         raise InputError(f"cannot write '{os.fspath(path)}': this Blender was built without USD "
                          f"(Blender {bpy.app.version_string} has no wm.usd_export, as in Debian's "
                          "packages); export FBX or glTF instead, or use a blender.org build for USD")
-    options = dict(selected_objects_only=True, export_animation=True, export_armatures=True,
+    options = dict(selected_objects_only=True, export_animation=True, export_armatures=True, export_shapekeys=True,
                    only_deform_bones=False, export_meshes=True, export_materials=True,
                    export_uvmaps=True, export_normals=True, export_lights=False, export_cameras=False,
                    export_textures_mode="KEEP", export_textures=False, generate_preview_surface=True,

@@ -14,7 +14,7 @@ import numpy as np
 import bpy
 
 from ..core import bones as bn
-from ..core.leaves import leaf_mesh
+from ..core.leaves import flap_weights, leaf_flap_offsets, leaf_mesh
 from ..core.tree3d import Tree3D
 from . import action_api
 
@@ -116,7 +116,36 @@ def build_leaf_mesh(tree: Tree3D, rig, coll, name: str, names: list[str], materi
     mod = ob.modifiers.new("Armature", "ARMATURE")
     mod.object = rig
     ob.parent = rig
+    add_leaf_flap(ob, tree, g["co"], name, created)
     return ob
+
+
+FLAP_KEYS = ("Leaf flap sin pos", "Leaf flap sin neg", "Leaf flap cos pos", "Leaf flap cos neg")   # USD-safe names
+
+
+def add_leaf_flap(ob, tree: Tree3D, co: np.ndarray, name: str, created) -> None:
+    """Every leaf's own flap about its stem: four shape keys (+C, −C, +S, −S of
+    :func:`core.leaves.leaf_flap_offsets`) keyed with :func:`core.leaves.flap_weights`, so each
+    card turns by ``leaf_angle · sin(ωt + φ_leaf)`` before the cluster bone carries it. Shape keys
+    on a skinned mesh are what FBX (blend shapes), glTF (morph targets) and USD (UsdSkel blend
+    shapes) keep with their animation."""
+    lv = tree.leaves
+    if lv.leaf_angle <= 0 or lv.leaf_hz <= 0:
+        return
+    C, S, _ = leaf_flap_offsets(co, lv.leaf_angle, lv.seed)
+    ob.shape_key_add(name="Basis", from_mix=False)
+    for key_name, d in zip(FLAP_KEYS, (C, -C, S, -S)):
+        kb = ob.shape_key_add(name=key_name, from_mix=False)
+        kb.slider_min, kb.slider_max = 0.0, 1.0
+        kb.data.foreach_set("co", (co + d).astype(np.float32).ravel())
+    keys = ob.data.shape_keys
+    action, make_fcurve = action_api.new_action(keys, f"{name} Flap")
+    created.add(bpy.data.actions, action)
+    w = flap_weights(tree.n_frames, tree.fps, lv.leaf_hz)
+    frames = np.arange(1, tree.n_frames + 1, dtype=np.float32)
+    for i, key_name in enumerate(FLAP_KEYS):
+        path = f'key_blocks["{bpy.utils.escape_identifier(key_name)}"].value'
+        action_api.write_keys(make_fcurve(path, 0, "Leaf flap"), frames, w[:, i])
 
 
 def leaf_tint(leaves) -> np.ndarray:

@@ -146,8 +146,10 @@ def remove_collection(coll: bpy.types.Collection) -> None:
         if ob.data is not None:
             datas.add(ob.data)
             materials.update(m for m in getattr(ob.data, "materials", ()) if m is not None)
-        if ob.animation_data is not None and ob.animation_data.action is not None:
-            actions.add(ob.animation_data.action)
+        for owner in (ob, getattr(ob.data, "shape_keys", None)):     # the leaves' flap keys too
+            ad = getattr(owner, "animation_data", None)
+            if ad is not None and ad.action is not None:
+                actions.add(ad.action)
     children = list(coll.children_recursive)
     for ob in objects:
         bpy.data.objects.remove(ob, do_unlink=True)

@@ -171,3 +171,20 @@ def test_on_bark_by_hand():
     radius = np.array([0.1, 0.1, 0.01])
     pts = np.array([[0.12, 1.0], [0.2, 1.0], [0.5, 2.005]])
     assert leaves.on_bark(pts, parents, nodes, radius).tolist() == [True, False, False]
+
+
+def test_leaf_flap_offsets_by_hand():
+    """A unit card, stem from (0,0,0) to (1,0,0), tip edge at y = 1: turning 90° about the stem
+    sends the tip vertices to z = 1, so Δ = (0, −1, 1) there and 0 on the stem; the four
+    non-negative key weights rebuild Δ·sin(ωt + φ)."""
+    co = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float)
+    C, S, phase = leaves.leaf_flap_offsets(co, np.pi / 2, seed=5)
+    delta = np.array([[0, 0, 0], [0, 0, 0], [0, -1, 1], [0, -1, 1]], float)
+    np.testing.assert_allclose(C, delta * np.cos(phase[0]), atol=1e-12)
+    np.testing.assert_allclose(S, delta * np.sin(phase[0]), atol=1e-12)
+    w = leaves.flap_weights(48, 24.0, 3.0)
+    assert (w >= 0).all() and (w <= 1).all()
+    t = np.arange(48) / 24.0
+    offset = (w[:, 0] - w[:, 1])[:, None, None] * C + (w[:, 2] - w[:, 3])[:, None, None] * S
+    want = np.sin(2 * np.pi * 3.0 * t + phase[0])[:, None, None] * delta
+    np.testing.assert_allclose(offset, want, atol=1e-12)

@@ -9,7 +9,7 @@ import pytest
 
 from tree_from_video.core import leaves as lv
 from tree_from_video.core import pipeline
-from tree_from_video.operators import export, leaves_build, scene_build
+from tree_from_video.operators import action_api, export, leaves_build, scene_build
 
 from trees import empty_scene  # noqa: F401  (autouse fixture)
 from trees import ROOT, tree_height
@@ -63,6 +63,28 @@ def test_leaf_bones_ride_their_branches_and_flutter(tree):
         q = np.array([rig.pose.bones[n].rotation_quaternion for n in names])
         np.testing.assert_allclose(_rotation_angle_about(q, np.array([0.0, 1.0, 0.0])), L.flutter[frame - 1],
                                    atol=1e-4)
+    # every leaf's own flap: four shape keys whose keyed weights rebuild sin(ωt + φ_leaf)
+    keys = leaf_obj.data.shape_keys
+    assert [k.name for k in keys.key_blocks] == ["Basis", *leaves_build.FLAP_KEYS]
+    want = lv.flap_weights(tree.n_frames, tree.fps, L.leaf_hz)
+    for i, name in enumerate(leaves_build.FLAP_KEYS):
+        path = f'key_blocks["{name}"].value'
+        fc = next(f for f in action_api.action_fcurves(keys.animation_data.action) if f.data_path == path)
+        got = np.array([fc.evaluate(f) for f in range(1, tree.n_frames + 1)])
+        np.testing.assert_allclose(got, want[:, i], atol=1e-5)
+    # with the bones switched off, a leaf tip moves by Δ sin(ωt + φ) about its stem
+    leaf_obj.modifiers["Armature"].show_viewport = False
+    C, S, phase = lv.leaf_flap_offsets(lv.leaf_mesh(L)["co"], L.leaf_angle, L.seed)
+    tip = 2                                        # card 0's first tip vertex
+    rest = np.array(keys.key_blocks["Basis"].data[tip].co)
+    t = np.arange(tree.n_frames) / tree.fps
+    for frame in (3, 7, 11):
+        bpy.context.scene.frame_set(frame)
+        ev = leaf_obj.evaluated_get(bpy.context.evaluated_depsgraph_get())
+        moved = np.array(ev.data.vertices[tip].co) - rest
+        delta = C[tip] / np.cos(phase[0]) if abs(np.cos(phase[0])) > 0.3 else S[tip] / np.sin(phase[0])
+        np.testing.assert_allclose(moved, delta * np.sin(2 * np.pi * L.leaf_hz * t[frame - 1] + phase[0]), atol=1e-5)
+    leaf_obj.modifiers["Armature"].show_viewport = True
     print(f"\n{L.count} leaf bones + {tree.n_nodes - 1} branch bones, {built['leaf_polygons']} leaf polygons, "
           f"build {built['timings']['total']:.2f} s (leaves {built['timings']['leaves']:.2f} s)")
 
@@ -89,7 +111,7 @@ def _glb_flutter(doc, binary, node):
 
 
 def test_leaves_are_in_the_gltf_fbx_and_usd_exports_animated(tree, tmp_path):
-    from test_exports import read_glb
+    from test_exports import accessor, read_glb
     built = scene_build.build_tree(bpy.context, tree, "Leafy")
     objects = [built["armature"], built["mesh"], built["leaves"]]
     names = _leaf_names(tree)
@@ -114,8 +136,14 @@ def test_leaves_are_in_the_gltf_fbx_and_usd_exports_animated(tree, tmp_path):
         worst = max(worst, err)
     print(f"\nglTF: {len(names)} leaf joints; flutter angle error ≤ {np.degrees(worst):.4f}°")
     assert worst <= 1e-3
-    meshes = [m["name"] for m in doc["meshes"]]
-    assert any("Leaves" in m for m in meshes)
+    leaves_mesh = next(m for m in doc["meshes"] if "Leaves" in m["name"])
+    assert len(leaves_mesh["primitives"][0]["targets"]) == 4                  # the per-leaf flap
+    leaves_node = next(i for i, n in enumerate(doc["nodes"]) if n.get("mesh") == doc["meshes"].index(leaves_mesh))
+    anim = doc["animations"][0]
+    weights = [c for c in anim["channels"] if c["target"]["path"] == "weights" and c["target"]["node"] == leaves_node]
+    assert len(weights) == 1
+    w = accessor(doc, binary, anim["samplers"][weights[0]["sampler"]]["output"]).reshape(FRAMES, 4)
+    np.testing.assert_allclose(w, lv.flap_weights(FRAMES, tree.fps, L.leaf_hz), atol=1e-4)
 
     # FBX: re-import keeps the leaf bones and the leaf mesh's groups
     fbx = tmp_path / "tree.fbx"
@@ -127,6 +155,8 @@ def test_leaves_are_in_the_gltf_fbx_and_usd_exports_animated(tree, tmp_path):
     leaf_mesh = next(ob for ob in bpy.context.scene.objects if ob.type == "MESH" and "Leaves" in ob.name)
     assert len(leaf_mesh.data.polygons) == L.count * L.cards
     assert set(names) <= {g.name for g in leaf_mesh.vertex_groups}
+    keys = leaf_mesh.data.shape_keys
+    assert keys is not None and len(keys.key_blocks) == 5 and keys.animation_data.action is not None
 
     # USD (where Blender has it): the leaf bones are joints of the skeleton, animated
     if not export.has_usd():
@@ -148,6 +178,8 @@ def test_leaves_are_in_the_gltf_fbx_and_usd_exports_animated(tree, tmp_path):
     joints = [str(j).rsplit("/", 1)[-1] for j in skel.GetJointsAttr().Get()]
     assert set(names) <= set(joints)
     assert len(anim.GetRotationsAttr().GetTimeSamples()) == FRAMES
+    assert len(anim.GetBlendShapesAttr().Get()) == 4                          # the per-leaf flap
+    assert len(anim.GetBlendShapeWeightsAttr().GetTimeSamples()) == FRAMES
 
 
 def _qconj(q):
