@@ -258,7 +258,33 @@ def grow_2d(model: SpeciesModel, region: Region2D, p: GrowParams, rng: np.random
         total += need
     report(progress, "growing", 1.0)
     parents, xz, anchor = _subdivide(np.array(par), np.array(pos), region, n_seg, p.bend, rng)
+    xz = pull_inside(xz, parents, region.polygon)
     return Grown2D(parents, xz, anchor, stopped)
+
+
+def pull_inside(pos: np.ndarray, parents: np.ndarray, polygon: np.ndarray) -> np.ndarray:
+    """Nodes ``pos (N, 2)`` that the raster test let out of the exact ``polygon (M, 2)`` (a cell
+    or two, where the outline turns sharply, e.g. a heart's notch) slid back toward their parent
+    until inside (bisection; parents first, so the parent is already inside)."""
+    import cv2
+    c = np.asarray(polygon, np.float32).reshape(-1, 1, 2)
+
+    def inside(q):
+        return cv2.pointPolygonTest(c, (float(q[0]), float(q[1])), True) >= 0.0
+    out = pos.copy()
+    for n in np.flatnonzero(parents >= 0):
+        if inside(out[n]):
+            continue
+        a, b = 0.0, 1.0                                   # a: inside (at the parent), b: outside
+        for _ in range(20):
+            m = 0.5 * (a + b)
+            if inside(out[parents[n]] + m * (out[n] - out[parents[n]])):
+                a = m
+            else:
+                b = m
+        a = max(a, 0.05)                                  # never a zero-length bone
+        out[n] = out[parents[n]] + a * (out[n] - out[parents[n]])
+    return out
 
 
 def _dirichlet(rng: np.random.Generator, alpha: np.ndarray) -> np.ndarray:

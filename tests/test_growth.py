@@ -38,8 +38,9 @@ def test_all_nodes_inside_envelope(model, shape):
     for seed in range(3):
         still = growth.grow_tree(model, env, growth.GrowParams(seed=seed, wind=0.0, n_frames=2))
         rest = still.nodes3d[0].astype(float)
-        in2d = _inside_2d(poly, rest[:, [0, 2]], 0.002 * H)
-        in3d = env.contains(rest, tol=0.002 * H)
+        cell = H / envelopes.RASTER_ROWS             # growth tests containment on a raster of Ω'
+        in2d = _inside_2d(poly, rest[:, [0, 2]], cell)
+        in3d = env.contains(rest, tol=cell)
         rates.append(min(in2d.mean(), in3d.mean()))
         moving = growth.grow_tree(model, env, growth.GrowParams(seed=seed, n_frames=60))
         P = moving.nodes3d.reshape(-1, 3).astype(float)
