@@ -81,6 +81,8 @@ def main() -> int:
                 return 1
 
     pipeline = importlib.import_module(f"{name}.core.pipeline")
+    library = importlib.import_module(f"{name}.core.pgm").species_library()
+    assert {"broad", "sparse", "conifer"} <= set(library), f"species library incomplete: {sorted(library)}"
     scene_build = importlib.import_module(f"{name}.operators.scene_build")
     action_api = importlib.import_module(f"{name}.operators.action_api")
 
@@ -105,9 +107,13 @@ def main() -> int:
     n_keys = sum(len(fc.keyframe_points) for fc in fcurves)
     assert n_bones > 0, "the armature has no bones"
     assert n_keys > 0, "the action has no keyframes"
-    assert n_bones == len(tree.edges()), f"{n_bones} bones for {len(tree.edges())} skeleton edges"
+    n_leaves = tree.leaves.count if tree.leaves is not None else 0
+    assert n_leaves > 0, "the reconstruction has no leaf clusters"
+    assert n_bones == len(tree.edges()) + n_leaves, \
+        f"{n_bones} bones for {len(tree.edges())} skeleton edges + {n_leaves} leaf clusters"
+    assert out["leaves"] is not None and out["leaves"].data.shape_keys is not None, "no leaf mesh with its flap keys"
     print(f"extension_check: OK: {len(tree.parents)} nodes x {tree.n_frames} frames -> armature "
-          f"'{rig.name}' with {n_bones} bones, {len(fcurves)} F-curves, {n_keys} keys "
+          f"'{rig.name}' with {n_bones} bones ({n_leaves} leaf clusters), {len(fcurves)} F-curves, {n_keys} keys "
           f"(run {t_run:.1f} s, build_3d {t_3d:.1f} s, build_tree {t_build:.2f} s)", flush=True)
     return 0
 
