@@ -22,3 +22,28 @@ def register_with_sample():
     props.video_path = os.path.join(ROOT, "sample_videos", "broad", "video.mp4")
     props.outline_path = os.path.join(ROOT, "sample_videos", "broad", "outline.json")
     return props
+
+
+def open_tree_tab(set_view, frame: int = 30):
+    """A ``bpy.app.timers`` callback: open the 3D view's sidebar on the "Tree" tab (retrying until
+    the tab list exists), solid shading, ``set_view(space, region_3d)`` for the camera, then go to
+    ``frame`` and print "ui ready"."""
+    def setup_ui():
+        for area in bpy.context.window.screen.areas:
+            if area.type != "VIEW_3D":
+                continue
+            space = area.spaces.active
+            space.show_region_ui = True
+            space.shading.type = "SOLID"
+            region = next(r for r in area.regions if r.type == "UI")
+            try:
+                region.active_panel_category = "Tree"
+            except (TypeError, AttributeError):
+                return 0.3            # the tab list does not exist yet: try again after a redraw
+            set_view(space, space.region_3d)
+            bpy.context.scene.frame_set(frame)
+            area.tag_redraw()
+            print("ui ready", flush=True)
+            return None
+        return 0.3
+    return setup_ui

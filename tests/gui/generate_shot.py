@@ -10,7 +10,7 @@ import sys
 import bpy
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))   # this folder: _addon.py
-from _addon import register_with_sample  # noqa: E402
+from _addon import open_tree_tab, register_with_sample  # noqa: E402
 
 props = register_with_sample()
 for ob in list(bpy.data.objects):          # an empty stage for the forest
@@ -30,30 +30,12 @@ for cls in (panel.TREE_PT_source, panel.TREE_PT_outline, panel.TREE_PT_reconstru
     bpy.utils.register_class(cls)
 
 
-def setup_ui():
-    screen = bpy.context.window.screen
-    for area in screen.areas:
-        if area.type != "VIEW_3D":
-            continue
-        space = area.spaces.active
-        space.show_region_ui = True
-        space.shading.type = "SOLID"
-        space.shading.color_type = "TEXTURE"
-        region = next(r for r in area.regions if r.type == "UI")
-        try:
-            region.active_panel_category = "Tree"
-        except (TypeError, AttributeError):
-            return 0.3            # the tab list does not exist yet: try again after a redraw
-        r3d = space.region_3d
-        r3d.view_perspective = "PERSP"
-        r3d.view_rotation = (0.82, 0.55, 0.08, 0.12)
-        r3d.view_location = (0.0, 0.0, 4.0)
-        r3d.view_distance = 48.0
-        bpy.context.scene.frame_set(30)
-        area.tag_redraw()
-        print("ui ready", flush=True)
-        return None
-    return 0.3
+def forest_view(space, r3d):
+    space.shading.color_type = "TEXTURE"
+    r3d.view_perspective = "PERSP"
+    r3d.view_rotation = (0.82, 0.55, 0.08, 0.12)
+    r3d.view_location = (0.0, 0.0, 4.0)
+    r3d.view_distance = 48.0
 
 
-bpy.app.timers.register(setup_ui, first_interval=1.0)
+bpy.app.timers.register(open_tree_tab(forest_view), first_interval=1.0)

@@ -9,7 +9,7 @@ import sys
 import bpy
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))   # this folder: _addon.py
-from _addon import register_with_sample  # noqa: E402
+from _addon import open_tree_tab, register_with_sample  # noqa: E402
 
 props = register_with_sample()
 for ob in list(bpy.data.objects):          # an empty stage for the tree
@@ -19,32 +19,12 @@ props.show_advanced = True
 props.collection_name = "Broad Tree"
 print("reconstruct:", bpy.ops.tree_video.reconstruct("EXEC_DEFAULT"), flush=True)
 
-state = {"step": 0}
+
+def front_view(space, r3d):
+    r3d.view_perspective = "ORTHO"
+    r3d.view_rotation = (0.7071, 0.7071, 0.0, 0.0)      # front view
+    r3d.view_location = (0.0, 0.0, 5.0)
+    r3d.view_distance = 14.0
 
 
-def setup_ui():
-    screen = bpy.context.window.screen
-    for area in screen.areas:
-        if area.type != "VIEW_3D":
-            continue
-        space = area.spaces.active
-        space.show_region_ui = True
-        space.shading.type = "SOLID"
-        region = next(r for r in area.regions if r.type == "UI")
-        try:
-            region.active_panel_category = "Tree"
-        except (TypeError, AttributeError):
-            return 0.3            # the tab list does not exist yet: try again after a redraw
-        r3d = space.region_3d
-        r3d.view_perspective = "ORTHO"
-        r3d.view_rotation = (0.7071, 0.7071, 0.0, 0.0)      # front view
-        r3d.view_location = (0.0, 0.0, 5.0)
-        r3d.view_distance = 14.0
-        bpy.context.scene.frame_set(30)
-        area.tag_redraw()
-        print("ui ready", flush=True)
-        return None
-    return 0.3
-
-
-bpy.app.timers.register(setup_ui, first_interval=1.0)
+bpy.app.timers.register(open_tree_tab(front_view), first_interval=1.0)
