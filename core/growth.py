@@ -336,7 +336,7 @@ def lift_grown(g: Grown2D, region: Region2D, conifer: bool, p: GrowParams,
     ``RASTER_HEIGHT_PX`` tall, depths then clipped into ``env``; returns (nodes, Lift)."""
     H = max(region.height(), float(g.pos[:, 1].max()), 1e-6)
     k = RASTER_HEIGHT_PX / H                                       # px per metre
-    poly = envelope_polygon_of_region(region)
+    poly = np.asarray(region.polygon, np.float64)
     lo, hi = np.minimum(poly.min(0), g.pos.min(0)), np.maximum(poly.max(0), g.pos.max(0))
     bx, by = -lo[0] * k + 10.0, hi[1] * k + 10.0
     W, Hh = int(np.ceil((hi[0] - lo[0]) * k)) + 21, int(np.ceil(hi[1] * k)) + 21
@@ -359,10 +359,6 @@ def lift_grown(g: Grown2D, region: Region2D, conifer: bool, p: GrowParams,
         lim = env.depth_limit(nodes)
         nodes[:, 1] = np.clip(nodes[:, 1], -lim, lim)
     return nodes, lifted
-
-
-def envelope_polygon_of_region(region: Region2D) -> np.ndarray:
-    return np.asarray(region.polygon, np.float64)
 
 
 def grow_tree(model: SpeciesModel, envelope: Envelope, params: GrowParams | None = None,

@@ -156,7 +156,6 @@ def place_leaves(tree, points: np.ndarray, frame_bgr: np.ndarray, base_px: np.nd
     a cluster near its edge shrinks so it ends at the edge (the video shows no leaves outside).
     Returns a :class:`LeafClusters` or None when there are no seeds."""
     from .lift3d import envelope_from_meta
-    from .tree3d import LeafClusters
     p = params or LeafParams()
     check_leaf_params(p)
     points = np.asarray(points, np.float64).reshape(-1, 2)
@@ -199,14 +198,8 @@ def place_leaves(tree, points: np.ndarray, frame_bgr: np.ndarray, base_px: np.nd
     edge = np.where(dark, limit, -limit)                   # y away from the camera: dark to the back
     pos[:, 1] = y0 + rng.uniform(0.3, 0.9, len(pos)) * (edge - y0)
 
-    centre = pos.mean(0)
-    axis = pos - centre
-    norm = np.linalg.norm(axis, axis=1, keepdims=True)
-    axis = np.where(norm > 1e-9, axis / np.maximum(norm, 1e-12), [0.0, 0.0, 1.0])
-
     if len(pos) > 1:
-        d, _ = cKDTree(pos[:, [0, 2]]).query(pos[:, [0, 2]], k=2)
-        spacing = float(np.median(d[:, 1]))
+        spacing = median_spacing(pos[:, [0, 2]])
     else:
         spacing = 0.05 * max(float(np.ptp(rest[:, 2])), 1e-3)
     radius = max(p.coverage * spacing, 1e-4)
@@ -217,15 +210,29 @@ def place_leaves(tree, points: np.ndarray, frame_bgr: np.ndarray, base_px: np.nd
         x = np.clip(np.round(pts[:, 0]).astype(int), 0, mask.shape[1] - 1)
         y = np.clip(np.round(pts[:, 1]).astype(int), 0, mask.shape[0] - 1)
         size = np.clip(dist[y, x] * scale / radius, 0.25, 1.0).astype(np.float32)
-    # β from the distance to the node: clusters further out along a twig lag behind
+    return _clusters(tree, node, pos, sample_colour(frame_bgr, pts), dark, radius, p.cards, p.seed, size, p)
+
+
+def _clusters(tree, node: np.ndarray, pos: np.ndarray, colour: np.ndarray, dark: np.ndarray, radius: float,
+              cards: int, seed: int, scale, p: LeafParams):
+    """:class:`LeafClusters` at ``pos (S, 3)`` on ``node (S,)``, with what every placement shares:
+    the main axis pointing away from the clusters' centre, β from the distance to the node
+    (clusters further out along a twig lag behind) and the flutter and leaf flap below the
+    keyframes' Nyquist frequency."""
+    from .tree3d import LeafClusters
+    rest = tree.nodes3d[0].astype(np.float64)
+    axis = pos - pos.mean(0)
+    norm = np.linalg.norm(axis, axis=1, keepdims=True)
+    axis = np.where(norm > 1e-9, axis / np.maximum(norm, 1e-12), [0.0, 0.0, 1.0])
     dist = np.linalg.norm(pos - rest[node], axis=1)
     beta = (2 * np.pi * dist / (4 * radius)) % (2 * np.pi)
-    hz = min(p.flutter_hz, 0.45 * float(tree.fps))         # stay below Nyquist of the keyframes
-    flut = flutter_angles(tree, node, beta, hz, p.flutter_gain, np.radians(p.flutter_max_deg))
-    colour = sample_colour(frame_bgr, pts)
-    return LeafClusters(node.astype(np.int32), pos.astype(np.float32), axis.astype(np.float32), colour,
-                        dark.astype(bool), flut, float(radius), float(0.55 * radius), int(p.cards), int(p.seed),
-                        size, min(p.leaf_hz, 0.45 * float(tree.fps)), float(np.radians(p.leaf_angle_deg)))
+    nyquist = 0.45 * float(tree.fps)                       # stay below Nyquist of the keyframes
+    flut = flutter_angles(tree, node, beta, min(p.flutter_hz, nyquist), p.flutter_gain,
+                          np.radians(p.flutter_max_deg))
+    return LeafClusters(node.astype(np.int32), pos.astype(np.float32), axis.astype(np.float32),
+                        np.asarray(colour, np.float32), np.asarray(dark, bool), flut, float(radius),
+                        float(0.55 * radius), int(cards), int(seed), scale, min(p.leaf_hz, nyquist),
+                        float(np.radians(p.leaf_angle_deg)))
 
 
 #: Seeds farther than this share of the tree height from every thin branch node are not foliage
@@ -405,7 +412,6 @@ def grow_leaves(tree, info: dict, density: float = 1.0, seed: int = 0, params: L
     larger clusters), in the species' leaf colour ±8 %, axis away from the crown centre, flutter
     as for a reconstruction. ``info`` is :func:`.pgm.leaf_info` of the source. Returns
     :class:`LeafClusters` or None."""
-    from .tree3d import LeafClusters
     p = params or LeafParams()
     rng = np.random.default_rng([int(seed) & 0xFFFFFFFF, 0x1EAF])
     rest = tree.nodes3d[0].astype(np.float64)
@@ -418,19 +424,9 @@ def grow_leaves(tree, info: dict, density: float = 1.0, seed: int = 0, params: L
     node = rng.choice(thin, n, replace=n > len(thin))
     radius = float(info["radius_frac"]) * H / np.sqrt(min(max(density, 1e-3), 1.0))
     pos = rest[node] + rng.normal(scale=0.35 * radius, size=(n, 3))
-    centre = pos.mean(0)
-    axis = pos - centre
-    norm = np.linalg.norm(axis, axis=1, keepdims=True)
-    axis = np.where(norm > 1e-9, axis / np.maximum(norm, 1e-12), [0.0, 0.0, 1.0])
     colour = np.clip(np.asarray(info["colour"], np.float64)[None] * rng.uniform(0.92, 1.08, (n, 1)), 0, 1)
-    dist = np.linalg.norm(pos - rest[node], axis=1)
-    beta = (2 * np.pi * dist / (4 * radius)) % (2 * np.pi)
-    hz = min(p.flutter_hz, 0.45 * float(tree.fps))
-    flut = flutter_angles(tree, node, beta, hz, p.flutter_gain, np.radians(p.flutter_max_deg))
-    dark = (pos[:, 1] - centre[1]) > 0                      # behind the crown centre
-    return LeafClusters(node.astype(np.int32), pos.astype(np.float32), axis.astype(np.float32),
-                        colour.astype(np.float32), dark, flut, radius, 0.55 * radius, int(info["cards"]), int(seed),
-                        None, min(p.leaf_hz, 0.45 * float(tree.fps)), float(np.radians(p.leaf_angle_deg)))
+    dark = (pos[:, 1] - pos.mean(0)[1]) > 0                 # behind the crown centre
+    return _clusters(tree, node, pos, colour, dark, radius, info["cards"], seed, None, p)
 
 
 def leaf_flap_offsets(co: np.ndarray, angle: float, seed: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -5,7 +5,6 @@ Accepted inputs: a JSON file holding a list of ``[x, y]`` pixel vertices (or an 
 """
 from __future__ import annotations
 
-import json
 import os
 from dataclasses import dataclass
 
@@ -13,6 +12,7 @@ import cv2
 import numpy as np
 
 from .errors import InputError
+from .jsonio import read_json
 
 MIN_AREA_PX = 64.0  # smaller outlines cannot hold a tree's worth of corners
 
@@ -39,12 +39,7 @@ def polygon_to_mask(polygon: np.ndarray, width: int, height: int) -> np.ndarray:
 
 
 def _read_polygon(path: str) -> np.ndarray:
-    try:
-        with open(path, encoding="utf-8") as fh:
-            data = json.load(fh)
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise InputError(f"outline '{path}' is not readable JSON ({exc.__class__.__name__}); "
-                         "give a JSON list of [x, y] pixel points or a mask PNG") from None
+    data = read_json(path, f"outline '{path}'", "give a JSON list of [x, y] pixel points or a mask PNG")
     if isinstance(data, dict):
         data = data.get("polygon", data.get("points"))
     try:

@@ -793,12 +793,8 @@ def load_species(path: str | os.PathLike) -> SpeciesModel:
     if not os.path.isfile(path):
         raise InputError(f"species file '{path}' does not exist; pick a .json from the species library "
                          "or fit one from a reconstructed tree")
-    try:
-        with open(path, encoding="utf-8") as fh:
-            data = json.load(fh)
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise InputError(f"species file '{path}' is not readable JSON ({exc.__class__.__name__}); "
-                         "pick a .json written by Fit Species") from None
+    from .jsonio import read_json
+    data = read_json(path, f"species file '{path}'", "pick a .json written by Fit Species")
     return SpeciesModel.from_json(data, f"species file '{path}'")
 
 
