@@ -21,7 +21,7 @@ from ..core.lift3d import envelope_from_meta
 from ..core.progress import sub_progress
 from . import reconstruct_op
 from .reconstruct_op import _JobOperator, _status
-from .scene_build import _set_scene_timing, build_tree, deselect_all, remove_collection
+from .scene_build import _set_scene_timing, build_tree, deselect_all, evaluated_world_mesh, remove_collection
 
 #: seconds of building per timer tick while a forest is built
 BUILD_SLICE_S = 0.15
@@ -72,33 +72,12 @@ def envelope_spec(props, tree=None):
     return src.lower()
 
 
-def _evaluated_mesh(ob, triangles: bool = False):
-    """World-space vertices ``(V, 3)`` of ``ob``'s evaluated mesh (curves too), and with
-    ``triangles`` its loop triangles ``(T, 3)`` vertex indices (else None)."""
-    dg = bpy.context.evaluated_depsgraph_get()
-    ev = ob.evaluated_get(dg)
-    me = ev.to_mesh()
-    try:
-        co = np.empty(len(me.vertices) * 3, np.float32)
-        me.vertices.foreach_get("co", co)
-        tri = None
-        if triangles:
-            me.calc_loop_triangles()
-            tri = np.empty(len(me.loop_triangles) * 3, np.int32)
-            me.loop_triangles.foreach_get("vertices", tri)
-            tri = tri.reshape(-1, 3)
-    finally:
-        ev.to_mesh_clear()
-    mw = np.array(ob.matrix_world)
-    return co.reshape(-1, 3).astype(np.float64) @ mw[:3, :3].T + mw[:3, 3], tri
-
-
 def curve_polygon(ob) -> np.ndarray:
     """``(M, 2)`` (x, z) world metres of a closed curve object drawn in the front (X/Z) view."""
     if ob is None or ob.type != "CURVE":
         raise InputError("no curve chosen for the envelope; draw a closed curve in the front view "
                          "(Add › Curve › Circle, then shape it) and pick it")
-    world, _ = _evaluated_mesh(ob)
+    world, _ = evaluated_world_mesh(ob)
     if len(world) < 3:
         raise InputError(f"curve '{ob.name}' has fewer than 3 points; draw a closed shape around the crown")
     return world[:, [0, 2]]
@@ -125,7 +104,7 @@ def ground_triangles(ob) -> np.ndarray:
     """``(T, 3, 3)`` world-space triangles of a mesh object (its evaluated mesh)."""
     if ob is None or ob.type != "MESH":
         raise InputError("no ground mesh chosen; pick a mesh with faces, or clear it to use an area")
-    world, tri = _evaluated_mesh(ob, triangles=True)
+    world, tri = evaluated_world_mesh(ob, triangles=True)
     return world[tri]
 
 
@@ -137,7 +116,7 @@ def unique_collection_name(base: str) -> str:
     return name
 
 
-def _grow_work(model, tree_src, spec, params, audio, n_slots=None, slots_fn=None):
+def _grow_work(model, tree_src, spec, params, audio, slots_fn=None):
     """Worker: fit the species if needed, build the envelope, grow one tree or a forest."""
     def work(progress):
         m = model

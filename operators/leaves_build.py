@@ -215,12 +215,8 @@ def leaf_material(name: str, image_path: str | None = None, tint=(0.3, 0.5, 0.2)
                 pass
         mat.use_backface_culling = False
         img = leaf_image(name, image_path, tint)
-        if mat.node_tree is None:
-            mat.use_nodes = True
-        nt = mat.node_tree
-        nt.nodes.clear()
-        out = nt.nodes.new("ShaderNodeOutputMaterial")
-        bsdf = nt.nodes.new("ShaderNodeBsdfPrincipled")
+        from .scene_build import principled_nodes            # scene_build imports this module
+        nt, out, bsdf = principled_nodes(mat)
         tex = nt.nodes.new("ShaderNodeTexImage")
         tex.image = img
         attr = nt.nodes.new("ShaderNodeVertexColor")

@@ -164,6 +164,28 @@ def remove_collection(coll: bpy.types.Collection) -> None:
     bpy.data.collections.remove(coll)
 
 
+def evaluated_world_mesh(ob, triangles: bool = False):
+    """World-space vertices ``(V, 3)`` float64 of ``ob``'s evaluated mesh (modifiers, armature
+    pose; curves too), and with ``triangles`` its loop triangles ``(T, 3)`` vertex indices (else
+    None)."""
+    dg = bpy.context.evaluated_depsgraph_get()
+    ev = ob.evaluated_get(dg)
+    me = ev.to_mesh()
+    try:
+        co = np.empty(len(me.vertices) * 3, np.float32)
+        me.vertices.foreach_get("co", co)
+        tri = None
+        if triangles:
+            me.calc_loop_triangles()
+            tri = np.empty(len(me.loop_triangles) * 3, np.int32)
+            me.loop_triangles.foreach_get("vertices", tri)
+            tri = tri.reshape(-1, 3)
+    finally:
+        ev.to_mesh_clear()
+    mw = np.array(ev.matrix_world)
+    return co.reshape(-1, 3).astype(np.float64) @ mw[:3, :3].T + mw[:3, 3], tri
+
+
 def deselect_all(view_layer) -> None:
     """Deselect every object of ``view_layer`` (skipping entries of objects just removed, which
     read as None until the view layer resyncs)."""
@@ -387,6 +409,16 @@ def _build_mesh(tree: Tree3D, rest: np.ndarray, rig, coll, name: str, material, 
 BARK_LOOK = {"none": (0.35, 0.0), "smooth": (0.2, 0.15), "rough": (0.6, 0.6)}
 
 
+def principled_nodes(mat):
+    """``mat``'s node tree emptied (nodes switched on first on Blender 4.x; 5.x always has them),
+    with a Material Output and a Principled BSDF: ``(node_tree, output, bsdf)``."""
+    if mat.node_tree is None:
+        mat.use_nodes = True
+    nt = mat.node_tree
+    nt.nodes.clear()
+    return nt, nt.nodes.new("ShaderNodeOutputMaterial"), nt.nodes.new("ShaderNodeBsdfPrincipled")
+
+
 def bark_material(name: str, kind: str = "none") -> bpy.types.Material:
     """A Principled BSDF bark, procedural and UV-mapped (the bark follows the bending branches):
     brown-grey noise colour; bump from Voronoi cells plus, for ``kind`` "smooth"/"rough", furrows
@@ -397,12 +429,7 @@ def bark_material(name: str, kind: str = "none") -> bpy.types.Material:
     try:
         mat.diffuse_color = (0.22, 0.17, 0.13, 1.0)          # solid-view colour
         mat.roughness = 0.9
-        if mat.node_tree is None:                            # Blender 4.x; 5.x always has nodes
-            mat.use_nodes = True
-        nt = mat.node_tree
-        nt.nodes.clear()
-        out = nt.nodes.new("ShaderNodeOutputMaterial")
-        bsdf = nt.nodes.new("ShaderNodeBsdfPrincipled")
+        nt, out, bsdf = principled_nodes(mat)
         coord = nt.nodes.new("ShaderNodeTexCoord")
         mapping = nt.nodes.new("ShaderNodeMapping")
         noise = nt.nodes.new("ShaderNodeTexNoise")

@@ -166,19 +166,6 @@ def test_evaluated_pose_matches_input_positions(tree):
     print(f"\nworst tail error {worst:.2e} m (tolerance {tol:.2e} m)")
 
 
-def _evaluated_world_co(ob):
-    dg = bpy.context.evaluated_depsgraph_get()
-    ev = ob.evaluated_get(dg)
-    me = ev.to_mesh()
-    try:
-        co = np.empty(len(me.vertices) * 3, np.float32)
-        me.vertices.foreach_get("co", co)
-    finally:
-        ev.to_mesh_clear()
-    mw = np.array(ev.matrix_world)
-    return co.reshape(-1, 3) @ mw[:3, :3].T + mw[:3, 3]
-
-
 def _segment_distance(p, a, b):
     ab = b - a
     t = np.clip(np.sum((p - a) * ab, axis=-1) / np.sum(ab * ab, axis=-1), 0, 1)
@@ -203,7 +190,7 @@ def test_evaluated_mesh_follows_the_bones(tree):
     positions = {}
     for k in (1, 30, 60):
         bpy.context.scene.frame_set(k)
-        co = _evaluated_world_co(ob)
+        co, _ = scene_build.evaluated_world_mesh(ob)
         heads, tails, _ = expected(tree, k)
         d = _segment_distance(co, heads[vert_bone], tails[vert_bone])
         assert (d <= reach[vert_bone]).all(), f"frame {k}: a vertex is {d.max():.3f} m from its bone"
