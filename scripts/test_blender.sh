@@ -36,36 +36,32 @@ if [ $rc -ne 2 ] || ! grep -q "without USD" "$OUT/log" || [ -e "$OUT/usd" ]; the
 fi
 echo "batch under Blender 4.3: all files written; --usd refused clearly"
 
+# shot NAME WxH WAIT SCRIPT FAILURE PATTERN...: a GUI screenshot of tests/gui/SCRIPT into
+# $OUT/NAME.png (gui-shot fails on a blank capture); its log must contain every PATTERN.
+shot() {
+  local name=$1 size=$2 wait=$3 script=$4 failure=$5 pattern
+  shift 5
+  "$RB" gui-shot "$OUT/$name.png" --size "$size" --wait "$wait" -- \
+    blender --factory-startup --python "tests/gui/$script" > "$OUT/$name.log" 2>&1 \
+    || { tail -20 "$OUT/$name.log"; echo "$name screenshot failed or blank" >&2; exit 1; }
+  for pattern in "$@"; do
+    grep -qF "$pattern" "$OUT/$name.log" || { tail -20 "$OUT/$name.log"; echo "$failure" >&2; exit 1; }
+  done
+  echo "$name screenshot: $(stat -c %s "$OUT/$name.png") bytes"
+}
+
 echo "== Blender 4.3 GUI: screenshot of the panel after a reconstruction"
-"$RB" gui-shot "$OUT/panel.png" --size 1600x900 --wait 10 -- \
-  blender --factory-startup --python tests/gui/panel_shot.py > "$OUT/gui.log" 2>&1 \
-  || { tail -20 "$OUT/gui.log"; echo "panel screenshot failed or blank" >&2; exit 1; }
-grep -q "reconstruct: {'FINISHED'}" "$OUT/gui.log" || { tail -20 "$OUT/gui.log"; echo "no reconstruction in the GUI run" >&2; exit 1; }
-grep -q "ui ready" "$OUT/gui.log" || { echo "the sidebar never opened on the Tree tab" >&2; exit 1; }
-echo "panel screenshot: $(stat -c %s "$OUT/panel.png") bytes"
+shot panel 1600x900 10 panel_shot.py "no reconstruction in the GUI run" "reconstruct: {'FINISHED'}" "ui ready"
 
 echo "== Blender 4.3 GUI: a generated forest and the Generate sub-panel"
-"$RB" gui-shot "$OUT/generate.png" --size 1600x1000 --wait 10 -- \
-  blender --factory-startup --python tests/gui/generate_shot.py > "$OUT/generate.log" 2>&1 \
-  || { tail -20 "$OUT/generate.log"; echo "generate screenshot failed or blank" >&2; exit 1; }
-grep -q "forest: {'FINISHED'}" "$OUT/generate.log" || { tail -20 "$OUT/generate.log"; echo "no forest in the GUI run" >&2; exit 1; }
-grep -q "ui ready" "$OUT/generate.log" || { echo "the sidebar never opened on the Tree tab" >&2; exit 1; }
-echo "generate screenshot: $(stat -c %s "$OUT/generate.png") bytes"
+shot generate 1600x1000 10 generate_shot.py "no forest in the GUI run" "forest: {'FINISHED'}" "ui ready"
 
 echo "== Blender 4.3 GUI: Track & Preview drawn over the clip in the Movie Clip editor"
-"$RB" gui-shot "$OUT/clip.png" --size 1600x900 --wait 10 -- \
-  blender --factory-startup --python tests/gui/clip_shot.py > "$OUT/clip.log" 2>&1 \
-  || { tail -20 "$OUT/clip.log"; echo "clip editor screenshot failed or blank" >&2; exit 1; }
-grep -q "preview: {'FINISHED'}" "$OUT/clip.log" && grep -q "clip ready" "$OUT/clip.log" \
-  || { tail -20 "$OUT/clip.log"; echo "the preview did not run in the GUI" >&2; exit 1; }
-echo "clip overlay screenshot: $(stat -c %s "$OUT/clip.png") bytes"
+shot clip 1600x900 10 clip_shot.py "the preview did not run in the GUI" "preview: {'FINISHED'}" "clip ready"
 
 echo "== Blender 4.3 GUI: outline from an annotation drawn over the clip, then Track & Preview"
-"$RB" gui-shot "$OUT/annotation.png" --size 1600x900 --wait 12 -- \
-  blender --factory-startup --python tests/gui/annotation_shot.py > "$OUT/annotation.log" 2>&1 \
-  || { tail -20 "$OUT/annotation.log"; echo "annotation screenshot failed or blank" >&2; exit 1; }
-grep -q "status after drawing: (True" "$OUT/annotation.log" && grep -q "preview: {'FINISHED'}" "$OUT/annotation.log" \
-  || { tail -20 "$OUT/annotation.log"; echo "the annotation outline did not work in the GUI" >&2; exit 1; }
+shot annotation 1600x900 12 annotation_shot.py "the annotation outline did not work in the GUI" \
+  "status after drawing: (True" "preview: {'FINISHED'}"
 
 echo "== Blender 4.3 GUI: Reconstruct as a user starts it (INVOKE, modal), then cancelled"
 "$RB" gui-shot "$OUT/modal.png" --size 1200x800 --wait 25 -- \

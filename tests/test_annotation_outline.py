@@ -20,6 +20,7 @@ from tree_from_video.core.outline import polygon_to_mask
 from tree_from_video.operators import annotation, reconstruct_op
 
 from samples import committed
+from trees import addon  # noqa: F401  (autouse fixture: the add-on registered per test)
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 FIXTURE = os.path.join(HERE, "data", "annotation_outline.blend")
@@ -29,13 +30,6 @@ with open(os.path.join(committed("broad"), "outline.json")) as _f:
     TRUE_OUTLINE = np.array(json.load(_f)["polygon"], float)
 
 
-@pytest.fixture(autouse=True)
-def addon():
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    tree_from_video.register()
-    yield bpy.context.scene.tree_video
-    tree_from_video.unregister()
-    bpy.ops.wm.read_factory_settings(use_empty=True)
 
 
 def _fixture_clip():

@@ -14,7 +14,7 @@ from tree_from_video.core.errors import InputError
 from tree_from_video.operators import scene_build
 
 from trees import empty_scene  # noqa: F401  (autouse fixture)
-from trees import binary_tree, broad_tree
+from trees import assert_closed_tubes, binary_tree, broad_tree
 
 
 @pytest.fixture(scope="module")
@@ -213,17 +213,7 @@ def test_built_mesh_counts_weights_and_closure(tree):
     names = [g.name for g in ob.vertex_groups]
     assert names == bn.bone_names(tree.parents)
     np.testing.assert_array_equal(group, np.repeat(np.arange(B), K * S))       # each ring to its bone
-    edge_index = np.empty(len(me.loops), np.int32)
-    me.loops.foreach_get("edge_index", edge_index)
-    assert (np.bincount(edge_index, minlength=len(me.edges)) == 2).all()       # closed
-    me.calc_loop_triangles()
-    tri = np.empty(len(me.loop_triangles) * 3, np.int32)
-    me.loop_triangles.foreach_get("vertices", tri)
-    co = np.empty(len(me.vertices) * 3, np.float32)
-    me.vertices.foreach_get("co", co)
-    a, b, c = co.reshape(-1, 3)[tri.reshape(-1, 3)].astype(np.float64).transpose(1, 0, 2)
-    vol = np.bincount(tri.reshape(-1, 3)[:, 0] // (K * S), np.einsum("ij,ij->i", a, np.cross(b, c)) / 6)
-    assert (vol > 0).all(), "a tube is inside out"
+    co = assert_closed_tubes(me, K * S)
     ref = bm.tube_arrays(tree.nodes3d[0], tree.parents, _rest(res["armature"], tree),
                          *[np.maximum(r, 1e-4 * float(np.ptp(tree.nodes3d[0], axis=0).max()))
                            for r in bm.branch_radii(tree.parents, tree.radius)],

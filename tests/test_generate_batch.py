@@ -39,17 +39,7 @@ def _inside(poly, pts, tol):
     return np.array([cv2.pointPolygonTest(c, (float(x), float(z)), True) >= -tol for x, z in pts])
 
 
-from test_exports import read_glb  # noqa: E402  (the same GLB container check)
-
-
-def accessor(doc, binary, index):
-    a = doc["accessors"][index]
-    width = {"SCALAR": 1, "VEC3": 3, "VEC4": 4}[a["type"]]
-    view = doc["bufferViews"][a["bufferView"]]
-    start = view.get("byteOffset", 0) + a.get("byteOffset", 0)
-    stride = view.get("byteStride", 4 * width)
-    raw = np.frombuffer(binary, np.uint8, stride * (a["count"] - 1) + 4 * width, start)
-    return np.lib.stride_tricks.as_strided(raw.view(np.float32), (a["count"], width), (stride, 4)).copy()
+from test_exports import accessor, read_glb  # noqa: E402  (the same GLB container checks)
 
 
 # ----------------------------------------------------------------------------- mode (a): a species

@@ -12,18 +12,12 @@ from tree_from_video.core.job import Job
 from tree_from_video.operators import reconstruct_op
 
 from samples import committed
+from trees import addon  # noqa: F401  (autouse fixture: the add-on registered per test)
 
 VIDEO = os.path.join(committed("broad"), "video.mp4")
 OUTLINE = os.path.join(committed("broad"), "outline.json")
 
 
-@pytest.fixture(autouse=True)
-def addon():
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    tree_from_video.register()
-    yield bpy.context.scene.tree_video
-    tree_from_video.unregister()
-    bpy.ops.wm.read_factory_settings(use_empty=True)
 
 
 def _ids():

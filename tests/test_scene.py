@@ -12,7 +12,7 @@ from tree_from_video.core.tree3d import Tree3D
 from tree_from_video.operators import action_api, scene_build
 
 from trees import empty_scene  # noqa: F401  (autouse fixture)
-from trees import binary_tree, broad_tree, expected, pose_tails, tree_height
+from trees import assert_closed_tubes, binary_tree, broad_tree, expected, pose_tails, tree_height
 
 S2 = math.sqrt(0.5)
 
@@ -201,17 +201,7 @@ def test_evaluated_mesh_follows_the_bones(tree):
 
 def test_mesh_is_closed_with_outward_normals(tree):
     me = scene_build.build_tree(bpy.context, tree, "Tree")["mesh"].data
-    edge_index = np.empty(len(me.loops), np.int32)
-    me.loops.foreach_get("edge_index", edge_index)
-    assert (np.bincount(edge_index, minlength=len(me.edges)) == 2).all()     # every edge has 2 faces
-    me.calc_loop_triangles()
-    tri = np.empty(len(me.loop_triangles) * 3, np.int32)
-    me.loop_triangles.foreach_get("vertices", tri)
-    co = np.empty(len(me.vertices) * 3, np.float32)
-    me.vertices.foreach_get("co", co)
-    a, b, c = co.reshape(-1, 3)[tri.reshape(-1, 3)].astype(np.float64).transpose(1, 0, 2)
-    vol = np.bincount(tri.reshape(-1, 3)[:, 0] // 16, np.einsum("ij,ij->i", a, np.cross(b, c)) / 6)
-    assert (vol > 0).all(), "a tube is inside out"
+    assert_closed_tubes(me, 16)
     uv = np.empty(len(me.loops) * 2, np.float32)
     me.uv_layers["UVMap"].data.foreach_get("uv", uv)
     assert np.isfinite(uv).all() and 0 <= uv[0::2].min() and uv[0::2].max() <= 1

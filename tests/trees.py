@@ -87,10 +87,42 @@ def expected(tree: Tree3D, frame: int) -> tuple[np.ndarray, np.ndarray, np.ndarr
     return p[edges[:, 0]], p[edges[:, 1]], d / np.linalg.norm(d, axis=1, keepdims=True)
 
 
+def assert_closed_tubes(me, verts_per_tube: int) -> np.ndarray:
+    """Every edge of the mesh ``me`` has two faces (closed), and every tube (``verts_per_tube``
+    consecutive vertices) encloses a positive volume (normals point out). Returns the vertices
+    ``(V, 3)``."""
+    edge_index = np.empty(len(me.loops), np.int32)
+    me.loops.foreach_get("edge_index", edge_index)
+    assert (np.bincount(edge_index, minlength=len(me.edges)) == 2).all()     # every edge has 2 faces
+    me.calc_loop_triangles()
+    tri = np.empty(len(me.loop_triangles) * 3, np.int32)
+    me.loop_triangles.foreach_get("vertices", tri)
+    co = np.empty(len(me.vertices) * 3, np.float32)
+    me.vertices.foreach_get("co", co)
+    a, b, c = co.reshape(-1, 3)[tri.reshape(-1, 3)].astype(np.float64).transpose(1, 0, 2)
+    vol = np.bincount(tri.reshape(-1, 3)[:, 0] // verts_per_tube, np.einsum("ij,ij->i", a, np.cross(b, c)) / 6)
+    assert (vol > 0).all(), "a tube is inside out"
+    return co.reshape(-1, 3)
+
+
 @pytest.fixture(autouse=True)
 def empty_scene():
     """Every Blender test starts and ends in an empty factory scene (import it into the module)."""
     import bpy
     bpy.ops.wm.read_factory_settings(use_empty=True)
     yield
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+
+
+@pytest.fixture(autouse=True)
+def addon():
+    """The add-on registered in an empty factory scene for each test; yields ``scene.tree_video``
+    (import it into the module, like :func:`empty_scene`)."""
+    import bpy
+
+    import tree_from_video
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    tree_from_video.register()
+    yield bpy.context.scene.tree_video
+    tree_from_video.unregister()
     bpy.ops.wm.read_factory_settings(use_empty=True)
