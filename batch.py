@@ -65,6 +65,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--height", type=float, default=10.0, help="tree height in the scene, metres (default 10)")
     p.add_argument("--twigs", type=int, default=2, metavar="DEPTH",
                    help="generations of twigs copied from the tree's own forks, 0..6 (default 2; 0: none)")
+    p.add_argument("--no-branch-fit", action="store_true",
+                   help="pipe-model radii where they are traced, instead of widths and centre lines measured in frame 1")
     p.add_argument("--curliness", type=float, default=0.3,
                    help="bend the branch tubes along minimum-jerk curves, 0..1 (default 0.3; 0: straight)")
     p.add_argument("--bark", choices=("none", "smooth", "rough"), default="rough",
@@ -259,6 +261,7 @@ def main(argv: list[str] | None = None) -> int:
         settings.lift.conifer = args.conifer
         settings.motion.solver = args.solver
         settings.twigs.depth = args.twigs
+        settings.fit_branches = not args.no_branch_fit
         settings.curliness, settings.bark = args.curliness, args.bark
         if args.no_leaves:
             settings.leaves = None

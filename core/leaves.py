@@ -63,6 +63,10 @@ def leaf_seeds(points: np.ndarray, gray: np.ndarray, nodes2d: np.ndarray, nodes3
 
 # ----------------------------------------------------------------------------- leaf clusters
 
+#: Gaps in frame 1's tree pixels narrower than this share of a cluster's radius are closed before
+#: sizing clusters (one cluster covers many leaves and the sky between them).
+TREE_PX_CLOSE = 0.5
+
 #: Branches at least this share of the trunk's radius are thick enough for corners on their bark.
 BARK_RADIUS_SHARE = 0.3
 
@@ -107,10 +111,19 @@ def check_leaf_params(p: LeafParams) -> None:
         raise InputError("flutter frequency and gain must be ≥ 0 and coverage > 0")
 
 
-def sample_colour(bgr: np.ndarray, points: np.ndarray, radius: float = 2.0) -> np.ndarray:
+def sample_colour(bgr: np.ndarray, points: np.ndarray, radius: float = 2.0,
+                  tree_px: np.ndarray | None = None) -> np.ndarray:
     """sRGB colours ``(S, 3)`` in 0..1 around ``points (S, 2)`` px of a BGR frame (blurred, so a
-    corner on a leaf edge reads the leaf rather than one pixel)."""
-    blur = cv2.GaussianBlur(bgr.astype(np.float32), (0, 0), radius)
+    corner on a leaf edge reads the leaf rather than one pixel). With the tree's pixels
+    ``tree_px (H, W)`` only those count (a corner on a small tuft does not read the sky around
+    it): the Gaussian-weighted mean over tree pixels, the plain blur where none is near."""
+    img = bgr.astype(np.float32)
+    blur = cv2.GaussianBlur(img, (0, 0), radius)
+    if tree_px is not None:
+        wgt = np.asarray(tree_px, np.float32)
+        num = cv2.GaussianBlur(img * wgt[..., None], (0, 0), radius)
+        den = cv2.GaussianBlur(wgt, (0, 0), radius)[..., None]
+        blur = np.where(den > 0.05, num / np.maximum(den, 1e-6), blur)
     x = np.clip(np.round(points[:, 0]).astype(int), 0, bgr.shape[1] - 1)
     y = np.clip(np.round(points[:, 1]).astype(int), 0, bgr.shape[0] - 1)
     return (blur[y, x, ::-1] / 255.0).astype(np.float32)
@@ -145,7 +158,8 @@ def flutter_angles(tree, node: np.ndarray, beta: np.ndarray, hz: float, gain: fl
 
 
 def place_leaves(tree, points: np.ndarray, frame_bgr: np.ndarray, base_px: np.ndarray,
-                 params: LeafParams | None = None, mask: np.ndarray | None = None):
+                 params: LeafParams | None = None, mask: np.ndarray | None = None,
+                 tree_px: np.ndarray | None = None):
     """Leaf clusters for ``tree`` (a :class:`Tree3D` in metres with ``meta["metres_per_px"]`` and,
     if known, ``meta["envelope"]``) from frame-1 Harris ``points (S, 2)`` px on ``frame_bgr``;
     ``base_px`` the trunk base in frame 1 (px). Each kept seed becomes a cluster on the bone of
@@ -153,7 +167,10 @@ def place_leaves(tree, points: np.ndarray, frame_bgr: np.ndarray, base_px: np.nd
     or front (bright seed) of the crown, its main axis pointing away from the crown centre.
     Seeds on the trunk or a main limb's tube (see :func:`on_bark`) are corners on bark, not
     foliage, and are dropped. With the outline ``mask (H, W)``,
-    a cluster near its edge shrinks so it ends at the edge (the video shows no leaves outside).
+    a cluster near its edge shrinks so it ends at the edge (the video shows no leaves outside);
+    with frame 1's tree pixels ``tree_px (H, W)`` (:func:`.branch_fit.tree_map`) the edge is that
+    of the tree's pixels, gaps narrower than ``TREE_PX_CLOSE`` × the cluster radius closed, so a
+    tuft on a bare twig stays as small as the video shows it.
     Returns a :class:`LeafClusters` or None when there are no seeds."""
     from .lift3d import envelope_from_meta
     p = params or LeafParams()
@@ -205,12 +222,17 @@ def place_leaves(tree, points: np.ndarray, frame_bgr: np.ndarray, base_px: np.nd
     radius = max(p.coverage * spacing, 1e-4)
     size = np.ones(len(pos), np.float32)
     if mask is not None:                                   # end where the foliage ends
-        region = foliage_region(points, np.asarray(mask, bool), median_spacing(points))
+        if tree_px is not None:                            # the tree's own pixels in frame 1
+            kr = max(1, int(round(TREE_PX_CLOSE * radius / scale)))       # px
+            region = cv2.morphologyEx((np.asarray(tree_px, bool) & np.asarray(mask, bool)).astype(np.uint8),
+                                      cv2.MORPH_CLOSE, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * kr + 1,) * 2)) > 0
+        else:
+            region = foliage_region(points, np.asarray(mask, bool), median_spacing(points))
         dist = cv2.distanceTransform(region.astype(np.uint8), cv2.DIST_L2, 5)
         x = np.clip(np.round(pts[:, 0]).astype(int), 0, mask.shape[1] - 1)
         y = np.clip(np.round(pts[:, 1]).astype(int), 0, mask.shape[0] - 1)
         size = np.clip(dist[y, x] * scale / radius, 0.25, 1.0).astype(np.float32)
-    return _clusters(tree, node, pos, sample_colour(frame_bgr, pts), dark, radius, p.cards, p.seed, size, p)
+    return _clusters(tree, node, pos, sample_colour(frame_bgr, pts, tree_px=tree_px), dark, radius, p.cards, p.seed, size, p)
 
 
 def _clusters(tree, node: np.ndarray, pos: np.ndarray, colour: np.ndarray, dark: np.ndarray, radius: float,

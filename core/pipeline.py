@@ -3,13 +3,14 @@ hierarchy → skeleton2d (:func:`run`), then lift3d → motion → :class:`Tree3
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import cv2
 import numpy as np
 
 from . import cache
 from .appearance import AppearanceAccumulator, AppearanceMaps
+from .branch_fit import fit_to_video, measure_branches, tree_map
 from .errors import InputError
 from .hierarchy import Hierarchy, HierarchyParams, build_hierarchy
 from .leaves import LeafParams, place_leaves
@@ -48,6 +49,7 @@ class Settings:
     curliness: float = 0.0          # branch mesh: minimum-jerk bend, 0..1 (recorded in meta["mesh"])
     bark: str = "none"              # branch mesh: "none", "smooth" or "rough" (recorded in meta["mesh"])
     leaves: LeafParams | None = field(default_factory=LeafParams)   # None: bare branches
+    fit_branches: bool = True       # branch widths and centre lines measured in frame 1 (branch_fit)
 
 
 @dataclass
@@ -150,13 +152,25 @@ def build_3d(res: Result, s: Settings | None = None, name: str = "Tree",
     if not s.height_m > 0:
         raise InputError(f"tree height {s.height_m} m is not positive; give e.g. 10")
     sk = res.skeleton
+    frame = first_frame(res)
+    fit = radius_px = tmap = None
+    if s.fit_branches and frame is not None:
+        tmap = tree_map(frame, res.outline.mask)
+        if tmap is not None:
+            fit = measure_branches(sk.parents, sk.nodes2d[0], tmap)
+            radius_px, shift = fit_to_video(sk.parents, sk.level, sk.nodes2d[0], fit, s.pipe_exponent)
+            if radius_px is not None:               # onto the branches' centre lines, every frame
+                sk = replace(sk, nodes2d=(sk.nodes2d + shift[None]).astype(np.float32))
     lifted = lift(sk, res.outline, s.lift, sub_progress(progress, 0.0, 0.2))
     base = sk.nodes2d[0, 0].astype(float)
     targets = image_to_plane(sk.nodes2d.astype(float), base)[..., [0, 2]]
     mo = solve_motion(lifted.nodes, sk.parents, sk.level, targets, s.motion, sub_progress(progress, 0.2, 1.0))
     height_px = max(float(lifted.envelope.z.max()), float(lifted.nodes[:, 2].max()), 1.0)
     scale = s.height_m / height_px
-    radius = pipe_radii(sk.parents, s.tip_radius * s.height_m, s.pipe_exponent)
+    if radius_px is not None:
+        radius = (radius_px * scale).astype(np.float32)
+    else:
+        radius = pipe_radii(sk.parents, s.tip_radius * s.height_m, s.pipe_exponent)
     meta = {"height_px": height_px, "metres_per_px": scale, "solver": s.motion.solver,
             "conifer": s.lift.conifer, "mu_deg": float(np.degrees(lifted.mu)),
             "envelope": envelope_to_meta(lifted.envelope, scale),
@@ -165,23 +179,38 @@ def build_3d(res: Result, s: Settings | None = None, name: str = "Tree",
             "video_size": [int(res.outline.mask.shape[1]), int(res.outline.mask.shape[0])]}
     tree = Tree3D(sk.parents.copy(), (mo.nodes * scale).astype(np.float32), radius, sk.level.copy(),
                   sk.fps, name, meta)
-    tree = add_twigs(tree, s.twigs, progress)          # after the motion solve, before the leaves
-    return add_leaves(res, tree, s)
+    if fit is not None:
+        meta["branch_fit"] = {"measured": fit.n_measured, "radii": radius_px is not None,
+                              "tree_share": round(fit.tree_share, 4)}
+    tree_px = tmap.tree if tmap is not None else None
+    tree = add_twigs(tree, s.twigs, progress, tree_px)  # after the motion solve, before the leaves
+    return add_leaves(res, tree, s, frame, tree_px)
 
 
-def add_leaves(res: Result, tree: Tree3D, s: Settings) -> Tree3D:
-    """Leaf clusters from the frame-1 Harris points (``tree.leaves``); the tree unchanged when
-    ``s.leaves`` is None or frame 1 cannot be read again."""
-    if s.leaves is None:
-        return tree
+def first_frame(res: Result) -> np.ndarray | None:
+    """Frame 1 of the run (BGR uint8, the outline's size), or None when it cannot be read again."""
     frame = next(iter_frames(res.info, res.start, res.start + 1), None)
     if frame is None:
-        return tree
+        return None
     mask = res.outline.mask
     if frame.shape[:2] != mask.shape:
         frame = cv2.resize(frame, mask.shape[::-1], interpolation=cv2.INTER_AREA)
+    return frame
+
+
+def add_leaves(res: Result, tree: Tree3D, s: Settings, frame: np.ndarray | None = None,
+               tree_px: np.ndarray | None = None) -> Tree3D:
+    """Leaf clusters from the frame-1 Harris points (``tree.leaves``); the tree unchanged when
+    ``s.leaves`` is None or frame 1 cannot be read again. ``frame`` frame 1 if already read."""
+    if s.leaves is None:
+        return tree
+    if frame is None:
+        frame = first_frame(res)
+    if frame is None:
+        return tree
+    mask = res.outline.mask
     # the paper's seeds: frame 1's Harris corners inside the outline (all of them, not only
     # those that tracked well through the clip)
     points = detect_corners(cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY), mask, s.track)
-    tree.leaves = place_leaves(tree, points, frame, res.skeleton.nodes2d[0, 0].astype(float), s.leaves, mask)
+    tree.leaves = place_leaves(tree, points, frame, res.skeleton.nodes2d[0, 0].astype(float), s.leaves, mask, tree_px)
     return tree

@@ -195,7 +195,7 @@ def twig_rotations(driver_q: np.ndarray, lag: int, attenuation: float) -> np.nda
 # ----------------------------------------------------------------------------- growth
 
 def add_twigs(tree: Tree3D, params: TwigParams | None = None,
-              progress: ProgressFn | None = None) -> Tree3D:
+              progress: ProgressFn | None = None, tree_px: np.ndarray | None = None) -> Tree3D:
     """A new :class:`Tree3D` with twigs appended (see the module docstring).
 
     The original nodes keep their indices (so bones ``B{child:03d}`` of the reconstructed tree keep
@@ -203,7 +203,10 @@ def add_twigs(tree: Tree3D, params: TwigParams | None = None,
     are extended and ``nodes3d (F, N', 3)`` holds every frame. ``meta["twigs"]`` records
     ``first_node`` (index of the first twig node), ``nodes_added``, ``per_generation``, ``rejected``,
     ``shrunk``, ``templates``, ``depth``, ``seed``, ``lag_frames``, ``attenuation``. With
-    ``params.depth == 0`` the tree is returned unchanged (the same object)."""
+    ``params.depth == 0`` the tree is returned unchanged (the same object). With ``tree_px (H, W)``
+    (frame 1's tree pixels, :func:`.branch_fit.tree_map`) and ``meta["base_px"]`` /
+    ``meta["metres_per_px"]``, a twig must also lie over the tree in frame 1 (see
+    :func:`on_tree_pixels`): where the video shows sky, it shows no twig."""
     p = params or TwigParams()
     if p.depth <= 0:
         return tree
@@ -216,6 +219,7 @@ def add_twigs(tree: Tree3D, params: TwigParams | None = None,
     rest = nodes[0]
     N = len(parents)
     env = envelope_from_meta(tree.meta)
+    seen = on_tree_pixels(tree_px, tree.meta) if tree_px is not None else None
     height = max(float(np.ptp(rest, axis=0).max()), 1e-6)
     min_len = p.min_length * height
     rng = np.random.default_rng(p.seed)
@@ -248,7 +252,7 @@ def add_twigs(tree: Tree3D, params: TwigParams | None = None,
         roll = rng.uniform(-ROLL_JITTER, ROLL_JITTER, len(f_node))[item]
         vec = _compose(f_dir[item], f_len[item], tpl.theta[child], tpl.phi[child] + roll, tpl.rho[child])
         base = _rest_of(f_node[item], rest, new_pos)
-        scale = _fit(base, vec, env, min_len)
+        scale = _fit(base, vec, env, min_len, seen)
         ok = scale > 0
         rejected += int((~ok).sum())
         shrunk += int((ok & (scale < 1.0)).sum())
@@ -307,17 +311,46 @@ def _rest_of(idx: np.ndarray, rest: np.ndarray, new_pos: list) -> np.ndarray:
     return allpos[idx]
 
 
-def _fit(base: np.ndarray, vec: np.ndarray, env, min_len: float) -> np.ndarray:
+#: a twig over frame 1's tree pixels may stray this far (px) from them (blur, 1 px twigs)
+TREE_PX_MARGIN = 2
+
+
+def on_tree_pixels(tree_px: np.ndarray, meta: dict):
+    """``seen(pts (..., 3) metres) -> (...) bool``: the rest-pose point, seen like frame 1 (x right,
+    z up from the trunk base ``meta["base_px"]``, ``meta["metres_per_px"]``), falls on the tree's
+    pixels ``tree_px (H, W)`` grown by :data:`TREE_PX_MARGIN`; None without the placement."""
+    import cv2
+    if "base_px" not in meta or "metres_per_px" not in meta:
+        return None
+    k = 2 * TREE_PX_MARGIN + 1
+    grown = cv2.dilate(np.asarray(tree_px, np.uint8), cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k))) > 0
+    bx, by = (float(v) for v in meta["base_px"])
+    m = float(meta["metres_per_px"])
+    h, w = grown.shape
+
+    def seen(pts: np.ndarray) -> np.ndarray:
+        x = np.round(bx + pts[..., 0] / m).astype(int)
+        y = np.round(by - pts[..., 2] / m).astype(int)
+        ok = (x >= 0) & (x < w) & (y >= 0) & (y < h)
+        out = np.zeros(x.shape, bool)
+        out[ok] = grown[y[ok], x[ok]]
+        return out
+    return seen
+
+
+def _fit(base: np.ndarray, vec: np.ndarray, env, min_len: float, seen=None) -> np.ndarray:
     """Largest factor of :data:`SHRINK` keeping the twig ``base → base + s·vec`` inside the
-    envelope at all :data:`PROBES` and at least ``min_len`` long; 0 if none. ``(M,)``."""
+    envelope (and, with ``seen``, over the tree's pixels) at all :data:`PROBES` and at least
+    ``min_len`` long; 0 if none. ``(M,)``."""
     length = np.linalg.norm(vec, axis=1)
     shrink = np.asarray(SHRINK)
-    if env is None:
-        inside = np.ones((len(vec), len(shrink)), bool)
-    else:
-        f = shrink[None, :, None] * np.asarray(PROBES)[None, None, :]               # (1, S, P)
-        pts = base[:, None, None] + f[..., None] * vec[:, None, None]              # (M, S, P, 3)
-        inside = env.contains(pts, tol=0.0).all(axis=2)
+    f = shrink[None, :, None] * np.asarray(PROBES)[None, None, :]                   # (1, S, P)
+    pts = base[:, None, None] + f[..., None] * vec[:, None, None]                  # (M, S, P, 3)
+    inside = np.ones((len(vec), len(shrink)), bool)
+    if env is not None:
+        inside &= env.contains(pts, tol=0.0).all(axis=2)
+    if seen is not None:
+        inside &= seen(pts).all(axis=2)
     inside &= length[:, None] * shrink[None] >= min_len
     first = np.argmax(inside, axis=1)
     return np.where(inside.any(axis=1), shrink[first], 0.0)

@@ -51,6 +51,7 @@ def settings_from(props) -> pipeline.Settings:
     s.motion.max_step = props.max_step
     s.motion.max_total = props.max_total
     s.twigs.depth = props.twig_depth
+    s.fit_branches = props.fit_branches
     s.curliness, s.bark = props.curliness, props.bark
     if props.build_leaves:
         s.leaves.density, s.leaves.cards = props.leaf_density, props.leaf_cards

@@ -188,3 +188,19 @@ def test_leaf_flap_offsets_by_hand():
     offset = (w[:, 0] - w[:, 1])[:, None, None] * C + (w[:, 2] - w[:, 3])[:, None, None] * S
     want = np.sin(2 * np.pi * 3.0 * t + phase[0])[:, None, None] * delta
     np.testing.assert_allclose(offset, want, atol=1e-12)
+
+
+def test_leaf_colour_reads_the_tree_not_the_sky_around_a_small_tuft():
+    """A 3×3 px green tuft on blue sky: the blurred colour at its centre is a green-blue mix,
+    the colour over the tree's pixels is the tuft's own green."""
+    from tree_from_video.core.leaves import sample_colour
+    img = np.zeros((21, 21, 3), np.uint8)
+    img[:] = (230, 160, 90)                                   # BGR sky blue
+    img[9:12, 9:12] = (40, 150, 60)                           # BGR green
+    tree_px = np.zeros((21, 21), bool)
+    tree_px[9:12, 9:12] = True
+    p = np.array([[10.0, 10.0]])
+    mixed = sample_colour(img, p)[0]
+    own = sample_colour(img, p, tree_px=tree_px)[0]
+    assert own == pytest.approx(np.array([60, 150, 40]) / 255.0, abs=1e-3)   # RGB
+    assert mixed[2] > own[2] + 0.1                            # the plain blur picks up the blue

@@ -323,3 +323,25 @@ def test_gltf_with_twigs_has_their_joints_and_rotation_keys(blender, twiggy, tmp
     mesh_skin = [m for m in doc["meshes"]]
     assert len(mesh_skin) == 1
     print(f"\nglTF: {len(twig_names)} twig joints, {varying} with varying rotation keys")
+
+
+def test_twigs_stay_over_the_trees_pixels_in_frame_1(broad):
+    """With frame 1's tree pixels, a twig lies over them (grown by TREE_PX_MARGIN): here the
+    "video" shows the tree only left of the trunk, so no twig reaches to the right of it."""
+    rest = broad.nodes3d[0].astype(float)
+    m = 0.02                                              # metres per px
+    W, H = 1200, 800
+    base = (600.0, 700.0)
+    meta = dict(broad.meta, base_px=list(base), metres_per_px=m)
+    tree = Tree3D(broad.parents, broad.nodes3d, broad.radius, broad.level, broad.fps, broad.name, meta)
+    tree_px = np.zeros((H, W), bool)
+    tree_px[:, :600] = True                               # x < base: left of the trunk
+    out = tw.add_twigs(tree, tw.TwigParams(depth=2, seed=3), tree_px=tree_px)
+    N = tree.n_nodes
+    pts = out.nodes3d[0, N:].astype(float)
+    x_px = base[0] + pts[:, 0] / m
+    assert len(pts) > 0 and (x_px <= 600 + tw.TREE_PX_MARGIN + 0.5).all()
+    free = tw.add_twigs(tree, tw.TwigParams(depth=2, seed=3))
+    right = (base[0] + free.nodes3d[0, N:, 0].astype(float) / m > 600 + tw.TREE_PX_MARGIN + 0.5).sum()
+    assert right > 0 and (rest[:, 0] > 0).any()           # without the pixels, twigs do grow on the right
+    print(f"\ntree pixels: {len(pts)} twig nodes, all left of the trunk (without them {right} on the right)")

@@ -143,6 +143,7 @@ class TREE_PT_output(_TreePanel, bpy.types.Panel):
         col.prop(props, "collection_name")
         col.prop(props, "replace_existing")
         col.prop(props, "height_m")
+        col.prop(props, "fit_branches")
         col.prop(props, "twig_depth")
         col.prop(props, "build_mesh")
         sub = col.column()

@@ -6,7 +6,7 @@ from bl_operators.presets import AddPresetBase
 PRESET_SUBDIR = "tree_from_video"
 #: settings a preset stores (not the per-shot paths, masks or names)
 PRESET_VALUES = ["levels", "skeleton_kind", "conifer", "candidates", "solver", "sigma_track", "sigma_shape",
-                 "max_step", "max_total", "height_m", "build_mesh", "scale", "twig_depth", "curliness", "bark",
+                 "max_step", "max_total", "height_m", "fit_branches", "build_mesh", "scale", "twig_depth", "curliness", "bark",
                  "build_leaves", "leaf_density", "leaf_cards", "max_leaf_clusters", "flutter_hz", "flutter_gain"]
 
 

@@ -81,6 +81,9 @@ class TreeVideoSettings(bpy.types.PropertyGroup):
                                       description="Height of the reconstructed tree in the scene (metres)")
     build_mesh: bpy.props.BoolProperty(name="Branch Mesh", default=True,
                                        description="Build skinned bark tubes along the bones")
+    fit_branches: bpy.props.BoolProperty(name="Fit Branches to Video", default=True,
+                                         description="Measure branch widths and centre lines in the first frame "
+                                                     "(the trunk sets the scale of all radii); off: pipe-model radii")
     twig_depth: bpy.props.IntProperty(name="Twig Depth", default=2, min=0, max=6,
                                       description="Generations of twigs grown from every branch tip by copying the "
                                                   "tree's own forks (0: none); they ride on their branch's motion")
