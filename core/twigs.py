@@ -46,7 +46,7 @@ from . import bones as bn
 from .lift3d import envelope_from_meta
 from .progress import ProgressFn, report
 from .skeleton2d import chains
-from .tree3d import Tree3D
+from .tree3d import Tree3D, plane_to_image
 
 #: shrink factors tried, in order, for a twig that leaves the envelope
 SHRINK = (1.0, 0.8, 0.6, 0.4)
@@ -324,13 +324,13 @@ def on_tree_pixels(tree_px: np.ndarray, meta: dict):
         return None
     k = 2 * TREE_PX_MARGIN + 1
     grown = cv2.dilate(np.asarray(tree_px, np.uint8), cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k))) > 0
-    bx, by = (float(v) for v in meta["base_px"])
+    base = np.asarray(meta["base_px"], np.float64)
     m = float(meta["metres_per_px"])
     h, w = grown.shape
 
     def seen(pts: np.ndarray) -> np.ndarray:
-        x = np.round(bx + pts[..., 0] / m).astype(int)
-        y = np.round(by - pts[..., 2] / m).astype(int)
+        xy = np.round(plane_to_image(pts / m, base)).astype(int)
+        x, y = xy[..., 0], xy[..., 1]
         ok = (x >= 0) & (x < w) & (y >= 0) & (y < h)
         out = np.zeros(x.shape, bool)
         out[ok] = grown[y[ok], x[ok]]
