@@ -170,7 +170,8 @@ def place_leaves(tree, points: np.ndarray, frame_bgr: np.ndarray, base_px: np.nd
     a cluster near its edge shrinks so it ends at the edge (the video shows no leaves outside);
     with frame 1's tree pixels ``tree_px (H, W)`` (:func:`.branch_fit.tree_map`) the edge is that
     of the tree's pixels, gaps narrower than ``TREE_PX_CLOSE`` × the cluster radius closed, so a
-    tuft on a bare twig stays as small as the video shows it.
+    tuft on a bare twig stays as small as the video shows it, and each cluster moves to the centre
+    of the tree pixels within its radius (:func:`centre_on_pixels`).
     Returns a :class:`LeafClusters` or None when there are no seeds."""
     from .lift3d import envelope_from_meta
     p = params or LeafParams()
@@ -223,9 +224,13 @@ def place_leaves(tree, points: np.ndarray, frame_bgr: np.ndarray, base_px: np.nd
     size = np.ones(len(pos), np.float32)
     if mask is not None:                                   # end where the foliage ends
         if tree_px is not None:                            # the tree's own pixels in frame 1
+            own = np.asarray(tree_px, bool) & np.asarray(mask, bool)
             kr = max(1, int(round(TREE_PX_CLOSE * radius / scale)))       # px
-            region = cv2.morphologyEx((np.asarray(tree_px, bool) & np.asarray(mask, bool)).astype(np.uint8),
-                                      cv2.MORPH_CLOSE, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * kr + 1,) * 2)) > 0
+            region = cv2.morphologyEx(own.astype(np.uint8), cv2.MORPH_CLOSE,
+                                      cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * kr + 1,) * 2)) > 0
+            # a corner sits on its tuft's edge: the cluster goes to the tuft's centre
+            pts = centre_on_pixels(pts, own, max(1, int(round(radius / scale))))
+            pos[:, [0, 2]] = image_to_plane(pts, np.asarray(base_px, float))[:, [0, 2]] * scale
         else:
             region = foliage_region(points, np.asarray(mask, bool), median_spacing(points))
         dist = cv2.distanceTransform(region.astype(np.uint8), cv2.DIST_L2, 5)
@@ -233,6 +238,30 @@ def place_leaves(tree, points: np.ndarray, frame_bgr: np.ndarray, base_px: np.nd
         y = np.clip(np.round(pts[:, 1]).astype(int), 0, mask.shape[0] - 1)
         size = np.clip(dist[y, x] * scale / radius, 0.25, 1.0).astype(np.float32)
     return _clusters(tree, node, pos, sample_colour(frame_bgr, pts, tree_px=tree_px), dark, radius, p.cards, p.seed, size, p)
+
+
+def centre_on_pixels(points: np.ndarray, pixels: np.ndarray, radius_px: int) -> np.ndarray:
+    """Each of ``points (S, 2)`` px moved to the centroid of the ``pixels (H, W)`` bool within
+    ``radius_px`` of it (a disk); a point with none of them stays. A Harris corner lies on the
+    edge of the tuft it stands for; the cluster belongs on the tuft's centre."""
+    pts = np.asarray(points, np.float64)
+    if len(pts) == 0:
+        return pts
+    h, w = pixels.shape
+    disk = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * radius_px + 1,) * 2).astype(np.float32)
+    img = pixels.astype(np.float32)
+    # Σ over the disk of 1, x and y: correlation with the (symmetric) disk, zero outside the frame
+    n, sx, sy = (cv2.filter2D(a, cv2.CV_32F, disk, borderType=cv2.BORDER_CONSTANT)
+                 for a in (img, img * np.arange(w, dtype=np.float32)[None, :],
+                           img * np.arange(h, dtype=np.float32)[:, None]))
+    x = np.clip(np.round(pts[:, 0]).astype(int), 0, w - 1)
+    y = np.clip(np.round(pts[:, 1]).astype(int), 0, h - 1)
+    cnt = n[y, x].astype(np.float64)
+    ok = cnt > 0.5
+    out = pts.copy()
+    out[ok, 0] = sx[y[ok], x[ok]] / cnt[ok]
+    out[ok, 1] = sy[y[ok], x[ok]] / cnt[ok]
+    return out
 
 
 def _clusters(tree, node: np.ndarray, pos: np.ndarray, colour: np.ndarray, dark: np.ndarray, radius: float,

@@ -212,5 +212,7 @@ def add_leaves(res: Result, tree: Tree3D, s: Settings, frame: np.ndarray | None 
     # the paper's seeds: frame 1's Harris corners inside the outline (all of them, not only
     # those that tracked well through the clip)
     points = detect_corners(cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY), mask, s.track)
-    tree.leaves = place_leaves(tree, points, frame, res.skeleton.nodes2d[0, 0].astype(float), s.leaves, mask, tree_px)
+    # the tree's own base: the branch fit may have moved the trunk onto its centre line
+    base_px = np.asarray(tree.meta.get("base_px", res.skeleton.nodes2d[0, 0]), float)
+    tree.leaves = place_leaves(tree, points, frame, base_px, s.leaves, mask, tree_px)
     return tree
