@@ -76,6 +76,13 @@ class TreeMap:
         """``(H, W)`` bool: the tree's pixels."""
         return self.dist > self.thr
 
+    def level(self) -> np.ndarray:
+        """``(H, W)`` float32 in [0, 1], how unlike the background each pixel is:
+        ``T = clip((dist − floor) / (2 (thr − floor)), 0, 1)``: 0 at the background's typical
+        distance, ½ at the threshold, 1 at twice as far above the floor."""
+        span = max(2.0 * (self.thr - self.floor), 1e-3)
+        return np.clip((self.dist - self.floor) / span, 0.0, 1.0).astype(np.float32)
+
 
 def tree_map(frame_bgr: np.ndarray, mask: np.ndarray, seed: int = 0,
              max_samples: int = 4000) -> TreeMap | None:

@@ -2,9 +2,12 @@
 
 1. Bark evidence ``E = dark · steady``: the share of frames a pixel is dark times
    ``exp(-std / s)`` (foliage flickers, bark does not), from :class:`AppearanceMaps`.
-2. Ridges: multi-scale Hessian ridge filter of E (``σ² · max(0, −λ_min)``, max over scales).
+2. Ridges: multi-scale Hessian ridge filter of E (``σ² · max(0, −λ_min)``, max over scales),
+   joined (max) with the ridges of frame 1's bark-coloured pixels (:mod:`.frame_evidence`): a
+   thin limb that sways by more than its width leaves no ridge in E, but is sharp in frame 1.
 3. A cost per pixel, low on ridges, higher in foliage, highest on bright, steady, smooth
-   pixels (sky seen through the crown); pixels outside the outline are not in the graph.
+   pixels (sky seen through the crown) and on what frame 1 shows as background; pixels outside
+   the outline are not in the graph.
 4. Shortest paths (Dijkstra, 8-connected) from the trunk base to targets: the clusters of the
    normalized-cut hierarchy (centroids, and the points where two sibling clusters meet), twig
    ends below its finest level (each leaf cluster split by k-means) and the far ends of traced
@@ -27,6 +30,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import dijkstra
 
 from .appearance import AppearanceMaps
+from .frame_evidence import frame_evidence
 from .hierarchy import Hierarchy
 from .outline import Outline
 from .progress import ProgressFn, report
@@ -48,6 +52,11 @@ class TraceParams:
     merge_radius: float = 0.015      # paths this close to the tree join it instead of running beside
     twig_tracks: int = 6             # tracks per twig target below the finest hierarchy level
     max_twigs: int = 300             # at most this many twig targets (many tracks in a large video)
+    frame1: bool = True              # also trace on frame 1's own pixels (see frame_evidence)
+    frame_ridge_scales: tuple = (1.0, 2.0)   # working px: bark in one frame is sharp and thin
+    background_cost: float = 6.0     # extra cost per px of what frame 1 shows as background
+    bark_colour_tol: float = 2.0     # CIELAB distance beyond the trunk's own colour spread
+    max_bark_share: float = 0.3      # a crown more bark-coloured than this: colour tells nothing
 
 
 def relative_decay(x: np.ndarray, inside: np.ndarray) -> np.ndarray:
@@ -350,14 +359,37 @@ def trunk_base(ridge: np.ndarray, evidence: np.ndarray, mask: np.ndarray) -> tup
     return x, int(y)
 
 
+def with_frame1(params: TraceParams, maps: AppearanceMaps, rn: np.ndarray,
+                size: float) -> tuple[np.ndarray, np.ndarray | None]:
+    """The clip's normalized ridge strength ``rn (h, w)`` joined with frame 1's (see
+    :mod:`.frame_evidence`): ``max(rn, ridge(bark₁) / p99)``, bark colour taken from the trunk
+    (the lowest quarter of the outline where ``rn > 0.5``); also frame 1's background map, or
+    None when the outline leaves no background to compare with. ``size`` tree height (px)."""
+    mask = maps.mask
+    ys, _ = np.nonzero(mask)
+    low = np.arange(mask.shape[0])[:, None] > ys.max() - 0.25 * size
+    fe = frame_evidence(maps.first, mask, mask & low & (rn > 0.5), params.bark_colour_tol,
+                        params.max_bark_share)
+    if fe is None:
+        return rn, None
+    if fe.bark is not None:
+        rt = ridge_filter(fe.bark, params.frame_ridge_scales)
+        q = float(np.percentile(rt[mask], 99))
+        if q > 1e-6:
+            rn = np.maximum(rn, np.clip(rt / q, 0, 1))
+    return rn, fe.background
+
+
 def _trace_paths(params: TraceParams, mask: np.ndarray, rn: np.ndarray, ridge: np.ndarray,
-                 sky: np.ndarray, hier: Hierarchy, p0: np.ndarray, twigs: np.ndarray,
-                 base: tuple[int, int], size: float,
+                 sky: np.ndarray, background: np.ndarray | None, hier: Hierarchy, p0: np.ndarray,
+                 twigs: np.ndarray, base: tuple[int, int], size: float,
                  progress: ProgressFn | None) -> tuple[np.ndarray, np.ndarray]:
     """Steps 3–5 of the module docstring on working-resolution maps; returns (parents, pos px)."""
     h, w = mask.shape
     bx, by = base
     cost = 1.0 + params.foliage_cost * (1.0 - rn) ** 2 + params.sky_cost * sky
+    if background is not None:
+        cost = cost + params.background_cost * background
     rmax = float(ridge[mask].max()) if mask.any() else 0.0
     if rmax > 1e-6:   # a small pull toward the ridge crest (no plateau across a wide trunk)
         cost -= 0.5 * np.sqrt(ridge / rmax)
@@ -412,6 +444,9 @@ def traced_skeleton(tracks: Tracks, hier: Hierarchy, outline: Outline, maps: App
     warnings = []
     rscale = float(np.percentile(inside_r, 99)) if inside_r.size else 0.0
     rn = np.clip(ridge / rscale, 0, 1) if rscale > 1e-6 else np.zeros_like(ridge)
+    background = None
+    if params.frame1:
+        rn, background = with_frame1(params, maps, rn, size)
     has_evidence = rscale > 1e-6 and float((rn > 0.3).sum()) > 0.02 * size * size / 10
     sky = sky_likeness(maps)
     bx, by = trunk_base(ridge, ev, mask)
@@ -419,7 +454,8 @@ def traced_skeleton(tracks: Tracks, hier: Hierarchy, outline: Outline, maps: App
     twigs, owner = foliage_targets(hier, p0, max(params.twig_tracks, len(p0) // params.max_twigs))
     report(progress, "skeleton", 0.2)
     if has_evidence:
-        parents, pos = _trace_paths(params, mask, rn, ridge, sky, hier, p0, twigs, (bx, by), size, progress)
+        parents, pos = _trace_paths(params, mask, rn, ridge, sky, background, hier, p0, twigs, (bx, by),
+                                    size, progress)
     else:
         warnings.append("no bark visible between the leaves: the skeleton follows the motion "
                         "hierarchy with a straight trunk")
