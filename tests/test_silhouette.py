@@ -16,11 +16,11 @@ from tree_from_video.sample_videos import synth_tree
 from trees import empty_scene  # noqa: F401  (autouse fixture)
 
 #: measured (traced skeleton, the default look: twigs 2, curliness 0.3, rough bark, leaves, branch
-#: widths and centre lines fitted to frame 1): broad 0.712, grey 0.738, gentle 0.717, hard 0.655,
-#: conifer 0.618, dense 0.813; branches alone 0.28-0.41. sparse 0.493 (0.496 bare): a nearly
-#: leafless tree of 1-3 px twigs; what is left is its 2D skeleton (a limb that is not traced,
-#: twig tips the trace stops short of). Before the fit to frame 1: 0.40-0.81, sparse 0.397.
-BARS = {"broad": 0.69, "hard": 0.63, "dense": 0.79, "conifer": 0.6, "gentle": 0.69, "grey": 0.71, "sparse": 0.47}
+#: widths and centre lines fitted to frame 1, the trace also on frame 1's own pixels, clusters on
+#: their tufts' centres): broad 0.777, grey 0.780, gentle 0.766, hard 0.732, conifer 0.700,
+#: dense 0.851, sparse 0.617 (0.540 bare); branches alone 0.28-0.54. Before frame 1 joined the
+#: trace and the leaves found their base: broad 0.712, conifer 0.618, dense 0.813, sparse 0.493.
+BARS = {"broad": 0.75, "hard": 0.71, "dense": 0.83, "conifer": 0.68, "gentle": 0.74, "grey": 0.76, "sparse": 0.6}
 
 
 def render_silhouette(tree, path: str) -> np.ndarray:
@@ -80,6 +80,4 @@ def test_rendered_silhouette_overlaps_the_video_tree(runs, variant, tmp_path):
     print(f"\n{variant}: silhouette IoU {iou:.3f} (branches only {iou_bare:.3f}); {tree.leaves.count if tree.leaves else 0} "
           f"leaf clusters, rendered {sil.sum()} px vs true {truth.sum()} px")
     assert iou >= BARS[variant]
-    lab_leaf = (true_labels(variant) == synth_tree.LABEL_LEAF).sum() / truth.sum()
-    if lab_leaf > 0.5:                         # a crown of foliage: the leaves put it where the video has it
-        assert iou > iou_bare
+    assert iou > iou_bare                      # the leaves go where the video has foliage
