@@ -87,4 +87,5 @@ echo "== bpy 5.3 (Python 3.13 module)"
 "$RB" run "$VENV/bin/python" -m pytest -q -p no:cacheprovider \
   tests/test_units.py tests/test_register.py tests/test_reconstruct_op.py tests/test_sample_run.py tests/test_batch.py tests/test_batch_3d.py \
   tests/test_scene.py tests/test_exports.py tests/test_annotation_outline.py tests/test_leaves_scene.py tests/test_twigs.py tests/test_branch_mesh.py \
-  tests/test_generate_op.py tests/test_generate_batch.py tests/test_pgm.py tests/test_growth.py tests/test_forest.py
+  tests/test_generate_op.py tests/test_generate_batch.py tests/test_pgm.py tests/test_growth.py tests/test_forest.py \
+  tests/test_silhouette.py tests/test_frame_evidence.py
