@@ -11,9 +11,10 @@ the shaded side of a lit branch; the pipe model's radii follow the tip count, no
    from the edge (px). An edge's width and offset are medians over its profiles; a profile whose
    run reaches the profile's end (foliage, a blob) says nothing.
 3. Radii and centre lines (:func:`fit_to_video`): the pipe model scaled by the trunk's measured
-   width, then every branch whose measurement agrees with that within a factor of 1.5 keeps
-   its own width and pulls its nodes onto its centre line; the rest (inside foliage, where two
-   branches cross) keep the scaled pipe model where they are.
+   width, then every branch whose measurement agrees with that within a factor of 1.5 (and is
+   not wider than its parent) keeps its own width and pulls its nodes onto its centre line;
+   the rest (inside foliage, where two branches cross, across a fork) keep the scaled pipe
+   model where they are. The radii then taper from root to tip (:func:`taper`).
 
 Without a clear background (no band outside the outline) or a measurable trunk, the skeleton
 and the pipe model stay as they are.
@@ -27,7 +28,7 @@ import cv2
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .skeleton2d import edges_of
+from .skeleton2d import edges_of, topological_order
 
 #: the width of the background band sampled outside the outline, share of the tree's height
 BAND = 0.04
@@ -40,6 +41,8 @@ LEVEL_PERCENTILE = 75.0
 PROFILE_T = (0.3, 0.5, 0.7)
 #: branches narrower than this (px) set no scale: anti-aliasing decides their width
 MIN_MEASURED_PX = 3.0
+#: a branch measured wider than this × its parent's radius is not trusted (see fit_to_video)
+PARENT_SLACK = 1.1
 
 
 @dataclass
@@ -191,16 +194,46 @@ def measure_branches(parents: np.ndarray, nodes_px: np.ndarray, tmap: TreeMap,
     return BranchFit(width, offset, share)
 
 
+@dataclass
+class VideoFit:
+    """What the fit gives the tree: ``radius_px (N,)`` px (None: keep the pipe model),
+    ``shift_px (N, 2)`` node moves onto the centre lines, ``trusted (N,)`` bool, the branches
+    (by child node) whose own measured width was kept before tapering."""
+
+    radius_px: np.ndarray | None
+    shift_px: np.ndarray
+    trusted: np.ndarray
+
+
+def taper(parents: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """``(N,)`` radii that never grow from root to tip: the mean of the lower envelope (each
+    radius capped by its parent's, root first) and the upper one (each parent at least as thick
+    as its children, tips first). Both envelopes taper, so their mean does; one narrow
+    measurement neither thins its whole subtree (as the cap alone would) nor makes a wasp
+    waist under a thick branch."""
+    parents = np.asarray(parents)
+    order = topological_order(parents)
+    lo, hi = np.array(r, np.float64), np.array(r, np.float64)
+    for n in order[1:]:                                    # root first
+        lo[n] = min(lo[n], lo[parents[n]])
+    for n in order[::-1][:-1]:                             # tips first
+        hi[parents[n]] = max(hi[parents[n]], hi[n])
+    return 0.5 * (lo + hi)
+
+
 def fit_to_video(parents: np.ndarray, level: np.ndarray, nodes_px: np.ndarray, fit: BranchFit,
-                 exponent: float = 2.0) -> tuple[np.ndarray | None, np.ndarray]:
-    """Radii ``(N,)`` px (None: keep the pipe model) and node moves ``(N, 2)`` px from ``fit``.
+                 exponent: float = 2.0) -> VideoFit:
+    """Radii and node moves (:class:`VideoFit`) from the measurements ``fit``.
 
     The pipe model ``r_pipe`` (tips 1) is scaled by the trunk, whose base is bark in nearly
     every video: ``k = median(width / 2 / r_pipe)`` over the measured trunk edges (level 0) in
     the lower third of the trunk, each at least ``MIN_MEASURED_PX`` wide. A branch's own width
     is trusted when it agrees with ``k · r_pipe`` within [1/2, 3/2] (farther off, the profile
-    crossed foliage or a second branch): trusted branches keep their width and move their two
-    nodes (a node by the mean offset of its trusted edges) onto the centre line."""
+    crossed foliage or a second branch) and, for branches above the trunk, root to tip, is at
+    most ``PARENT_SLACK`` × its parent's radius (wider, the profile ran across a fork; the
+    trunk's own widths set k and only taper). Trusted branches keep their width
+    and move their two nodes (a node by the mean offset of its trusted edges) onto the centre
+    line; the others keep ``k · r_pipe``. Last, the radii :func:`taper`."""
     from .tree3d import pipe_radii
     parents = np.asarray(parents)
     N = len(parents)
@@ -209,17 +242,23 @@ def fit_to_video(parents: np.ndarray, level: np.ndarray, nodes_px: np.ndarray, f
     pipe = pipe_radii(parents, 1.0, exponent).astype(np.float64)
     y = np.asarray(nodes_px, np.float64)[:, 1]
     trunk = np.flatnonzero((np.asarray(level) == 0) & (parents >= 0))
+    none = VideoFit(None, shift, np.zeros(N, bool))
     if len(trunk) == 0:
-        return None, shift
+        return none
     low = trunk[np.argsort(-y[trunk])][:max(1, int(np.ceil(len(trunk) / 3)))]      # image y grows down
     low = low[np.isfinite(half[low]) & (2 * half[low] >= MIN_MEASURED_PX)]
     if len(low) == 0:
-        return None, shift
+        return none
     k = float(np.median(half[low] / pipe[low]))
     r = k * pipe
     ratio = np.where(np.isfinite(half), half / np.maximum(r, 1e-9), np.nan)
     trusted = np.isfinite(ratio) & (ratio >= 0.5) & (ratio <= 1.5)
     r[trusted] = half[trusted]
+    lev = np.asarray(level)
+    for n in topological_order(parents)[1:]:               # root first: parents are final
+        if trusted[n] and lev[n] > 0 and half[n] > PARENT_SLACK * r[parents[n]]:
+            trusted[n] = False
+            r[n] = k * pipe[n]
     e = edges_of(parents)
     te = e[trusted[e[:, 1]]]
     acc = np.zeros((N, 2))
@@ -228,4 +267,4 @@ def fit_to_video(parents: np.ndarray, level: np.ndarray, nodes_px: np.ndarray, f
         np.add.at(acc, te[:, col], fit.offset_px[te[:, 1]])
         np.add.at(num, te[:, col], 1.0)
     shift = np.where(num[:, None] > 0, acc / np.maximum(num, 1)[:, None], 0.0)
-    return r.astype(np.float32), shift
+    return VideoFit(taper(parents, r).astype(np.float32), shift, trusted)

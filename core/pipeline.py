@@ -158,9 +158,10 @@ def build_3d(res: Result, s: Settings | None = None, name: str = "Tree",
         tmap = tree_map(frame, res.outline.mask)
         if tmap is not None:
             fit = measure_branches(sk.parents, sk.nodes2d[0], tmap)
-            radius_px, shift = fit_to_video(sk.parents, sk.level, sk.nodes2d[0], fit, s.pipe_exponent)
+            vf = fit_to_video(sk.parents, sk.level, sk.nodes2d[0], fit, s.pipe_exponent)
+            radius_px = vf.radius_px
             if radius_px is not None:               # onto the branches' centre lines, every frame
-                sk = replace(sk, nodes2d=(sk.nodes2d + shift[None]).astype(np.float32))
+                sk = replace(sk, nodes2d=(sk.nodes2d + vf.shift_px[None]).astype(np.float32))
     lifted = lift(sk, res.outline, s.lift, sub_progress(progress, 0.0, 0.2))
     base = sk.nodes2d[0, 0].astype(float)
     targets = image_to_plane(sk.nodes2d.astype(float), base)[..., [0, 2]]
@@ -181,6 +182,7 @@ def build_3d(res: Result, s: Settings | None = None, name: str = "Tree",
                   sk.fps, name, meta)
     if fit is not None:
         meta["branch_fit"] = {"measured": fit.n_measured, "radii": radius_px is not None,
+                              "trusted": int(vf.trusted.sum()),
                               "tree_share": round(fit.tree_share, 4)}
     tree_px = tmap.tree if tmap is not None else None
     tree = add_twigs(tree, s.twigs, progress, tree_px)  # after the motion solve, before the leaves

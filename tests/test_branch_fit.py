@@ -53,23 +53,26 @@ def test_no_background_band_means_no_fit():
 
 def test_fit_scales_the_pipe_model_by_the_trunk_and_trusts_agreeing_branches():
     # trunk 0-1-2 (level 0), fork at 2 into 3 and 4 (level 1); pipe radii with tips 1:
-    # r = [√2, √2, √2, 1, 1]. The two trunk edges measure 8 and 9 px (half 4 and 4.5) and the
+    # r = [√2, √2, √2, 1, 1]. The two trunk edges measure 8 and 8.6 px (half 4 and 4.3) and the
     # lower third of the trunk (ceil(2/3) = 1 edge, the lowest: into node 1) gives
     # k = 4 / √2. Branch 3 measures 6 px (ratio 3 / (k·1) = 1.06: trusted, keeps 3 px);
     # branch 4 measures 20 px (ratio 3.5: foliage, keeps k·1 and does not move its nodes).
+    # Edge 2 (4.3) is within 1.1 × its parent's 4: trusted. Taper: the lower envelope caps
+    # node 2 at 4, the upper one raises nodes 0 and 1 to 4.3; their mean is 4.15 on the trunk.
     parents = np.array([-1, 0, 1, 2, 2])
     level = np.array([0, 0, 0, 1, 1])
     nodes = np.array([[0.0, 100.0], [0.0, 70.0], [0.0, 40.0], [-20.0, 10.0], [20.0, 10.0]])
-    width = np.array([np.nan, 8.0, 9.0, 6.0, 20.0])
+    width = np.array([np.nan, 8.0, 8.6, 6.0, 20.0])
     offset = np.zeros((5, 2))
     offset[1] = [1.0, 0.0]
     offset[2] = [3.0, 0.0]
     offset[4] = [5.0, 0.0]
-    fit = bf.BranchFit(width, offset, 0.1)
-    r, shift = bf.fit_to_video(parents, level, nodes, fit)
+    vf = bf.fit_to_video(parents, level, nodes, bf.BranchFit(width, offset, 0.1))
+    r, shift = vf.radius_px, vf.shift_px
     k = 4.0 / np.sqrt(2.0)
     assert np.allclose(pipe_radii(parents, 1.0), [np.sqrt(2)] * 3 + [1, 1], rtol=1e-6)
-    assert r == pytest.approx([k * np.sqrt(2), 4.0, 4.5, 3.0, k], rel=1e-5)
+    assert vf.trusted.tolist() == [False, True, True, True, False]
+    assert r == pytest.approx([4.15, 4.15, 4.15, 3.0, k], rel=1e-5)
     # node moves: mean offset of the trusted edges touching it (in: child end, out: parent end)
     assert shift[0] == pytest.approx([1.0, 0.0])          # only edge 0→1
     assert shift[1] == pytest.approx([2.0, 0.0])          # edges 0→1 (1) and 1→2 (3)
@@ -77,15 +80,37 @@ def test_fit_scales_the_pipe_model_by_the_trunk_and_trusts_agreeing_branches():
     assert shift[4] == pytest.approx([0.0, 0.0])
 
 
+def test_a_branch_wider_than_its_parent_is_not_trusted_and_radii_taper():
+    """The same tree; branch 3 measures 10 px (half 5: ratio 1.77 to k·1 would be foliage anyway)
+    → make it 5.6 px wide on a trunk whose top edge measures 5 px: half 2.8 > 1.1 × 2.5, so the
+    profile ran across the fork: branch 3 keeps k·1 = 2.83 and does not move; node 2 (half 2.5,
+    ratio 0.88 to k·√2: trusted) and its thicker child then taper (mean of envelopes)."""
+    parents = np.array([-1, 0, 1, 2, 2])
+    level = np.array([0, 0, 0, 1, 1])
+    nodes = np.array([[0.0, 100.0], [0.0, 70.0], [0.0, 40.0], [-20.0, 10.0], [20.0, 10.0]])
+    width = np.array([np.nan, 8.0, 5.0, 5.6, np.nan])
+    offset = np.zeros((5, 2))
+    offset[3] = [4.0, 0.0]
+    vf = bf.fit_to_video(parents, level, nodes, bf.BranchFit(width, offset, 0.1))
+    k = 4.0 / np.sqrt(2.0)
+    assert vf.trusted.tolist() == [False, True, True, False, False]
+    assert not vf.shift_px[3].any()
+    # before tapering: [4, 4, 2.5, k, k]; lower envelope [4, 4, 2.5, 2.5, 2.5],
+    # upper [4, 4, k, k, k]
+    assert vf.radius_px == pytest.approx([4.0, 4.0, (2.5 + k) / 2, (2.5 + k) / 2, (2.5 + k) / 2], rel=1e-5)
+    r, p = vf.radius_px, parents
+    assert np.all(r[1:] <= r[p[1:]] + 1e-6)
+
+
 def test_no_measurable_trunk_keeps_the_pipe_model():
     parents = np.array([-1, 0, 1, 1])
     level = np.array([0, 0, 1, 1])
     nodes = np.array([[0.0, 100.0], [0.0, 50.0], [-9.0, 10.0], [9.0, 10.0]])
     fit = bf.BranchFit(np.array([np.nan, np.nan, 4.0, 4.0]), np.zeros((4, 2)), 0.1)
-    r, shift = bf.fit_to_video(parents, level, nodes, fit)
-    assert r is None and not shift.any()
+    vf = bf.fit_to_video(parents, level, nodes, fit)
+    assert vf.radius_px is None and not vf.shift_px.any() and not vf.trusted.any()
     thin = bf.BranchFit(np.array([np.nan, 2.0, 4.0, 4.0]), np.zeros((4, 2)), 0.1)   # below MIN_MEASURED_PX
-    assert bf.fit_to_video(parents, level, nodes, thin)[0] is None
+    assert bf.fit_to_video(parents, level, nodes, thin).radius_px is None
 
 
 @pytest.mark.parametrize("variant", ["broad", "sparse", "grey", "conifer"])
@@ -97,12 +122,12 @@ def test_measured_widths_match_the_true_branches(runs, variant):
     frame = pipeline.first_frame(res)
     tmap = bf.tree_map(frame, res.outline.mask)
     fit = bf.measure_branches(sk.parents, sk.nodes2d[0], tmap)
-    r, _ = bf.fit_to_video(sk.parents, sk.level, sk.nodes2d[0], fit)
-    assert r is not None
+    vf = bf.fit_to_video(sk.parents, sk.level, sk.nodes2d[0], fit)
+    assert vf.radius_px is not None
     lab = synth_tree.render_labels(synth_tree.build_scene(synth_tree.config_for(variant)), 0)
     true_map = bf.TreeMap((lab == synth_tree.LABEL_BRANCH).astype(np.float32) * 100.0, 50.0, 0.0)
     truth = bf.measure_branches(sk.parents, sk.nodes2d[0], true_map).width_px
-    trusted = np.isfinite(fit.width_px) & np.isclose(r, 0.5 * fit.width_px) & np.isfinite(truth)
+    trusted = vf.trusted & np.isfinite(truth)
     err = np.abs(fit.width_px[trusted] - truth[trusted])
     trunk = trusted & (sk.level == 0)
     rel = np.median(np.abs(fit.width_px[trunk] / truth[trunk] - 1))
@@ -133,3 +158,16 @@ def test_the_built_tree_has_the_videos_trunk(runs):
     print(f"\nsparse trunk radius: true {true_r:.3f} m, fitted {got:.3f} m, pipe model {was:.3f} m")
     assert got == pytest.approx(true_r, rel=0.15)
     assert abs(was / true_r - 1) > 0.15
+
+
+@pytest.mark.parametrize("variant", ["broad", "sparse"])
+def test_built_branches_taper_from_root_to_tip(runs, variant):
+    """No limb of the built tree is thicker than the branch it grows from. Before the parent
+    rule and the taper, broad had 11 branches over 1.15 × their parent's radius and a limb at
+    1.27 × the trunk's (a knot at the fork in the preview)."""
+    tree = pipeline.build_3d(runs[variant]["traced"], pipeline.Settings(leaves=None))
+    first = tree.meta["twigs"]["first_node"] if "twigs" in tree.meta else tree.n_nodes
+    n = np.arange(1, first)
+    r, p = tree.radius.astype(float), tree.parents
+    assert np.all(r[n] <= r[p[n]] * (1 + 1e-5)), np.max(r[n] / r[p[n]])
+    assert tree.meta["branch_fit"]["radii"]

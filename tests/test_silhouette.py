@@ -16,10 +16,10 @@ from tree_from_video.sample_videos import synth_tree
 from trees import empty_scene  # noqa: F401  (autouse fixture)
 
 #: measured (traced skeleton, the default look: twigs 2, curliness 0.3, rough bark, leaves, branch
-#: widths and centre lines fitted to frame 1, the trace also on frame 1's own pixels, clusters on
-#: their tufts' centres): broad 0.777, grey 0.780, gentle 0.766, hard 0.732, conifer 0.700,
-#: dense 0.851, sparse 0.617 (0.540 bare); branches alone 0.28-0.54. Before frame 1 joined the
-#: trace and the leaves found their base: broad 0.712, conifer 0.618, dense 0.813, sparse 0.493.
+#: widths and centre lines fitted to frame 1 and tapered, the trace also on frame 1's own pixels,
+#: clusters on their tufts' centres): broad 0.771, grey 0.779, gentle 0.764, hard 0.750, conifer
+#: 0.712, dense 0.851, sparse 0.628 (0.551 bare); branches alone 0.28-0.55. Before frame 1 joined
+#: the trace and the leaves found their base: broad 0.712, conifer 0.618, dense 0.813, sparse 0.493.
 BARS = {"broad": 0.75, "hard": 0.71, "dense": 0.83, "conifer": 0.68, "gentle": 0.74, "grey": 0.76, "sparse": 0.6}
 
 
