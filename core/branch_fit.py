@@ -3,7 +3,7 @@
 The 2D skeleton's nodes come from tracks and from a trace of the darkest bark, which runs along
 the shaded side of a lit branch; the pipe model's radii follow the tip count, not the video. Here:
 
-1. Tree pixels (:func:`tree_pixels`): frame-1 pixels inside the outline whose colour (CIELAB) is
+1. Tree pixels (:func:`tree_map`): frame-1 pixels inside the outline whose colour (CIELAB) is
    farther from every colour of the background (a band just outside the outline) than the
    background's own colours are from each other.
 2. Profiles (:func:`measure_branches`): across every skeleton edge, at a few points along it, the
@@ -87,13 +87,28 @@ class TreeMap:
         return np.clip((self.dist - self.floor) / span, 0.0, 1.0).astype(np.float32)
 
 
+def frame_lab(frame_bgr: np.ndarray) -> np.ndarray:
+    """``(H, W, 3)`` float32 CIELAB of a BGR uint8 frame, lightly blurred (σ 0.7 px: JPEG/H.264
+    noise, not edges), as every colour comparison of frame 1 reads it."""
+    return cv2.cvtColor(cv2.GaussianBlur(frame_bgr, (0, 0), 0.7), cv2.COLOR_BGR2LAB).astype(np.float32)
+
+
+def colour_reference(colours: np.ndarray) -> tuple[cKDTree, np.ndarray]:
+    """Split sampled ``colours (S, 3)`` CIELAB into halves: a KD-tree of the first (the
+    reference) and each second-half sample's distance to it ``(S − S//2,)``, the reference's own
+    spread, from which a threshold "like the reference" is read."""
+    ref, held = colours[:len(colours) // 2], colours[len(colours) // 2:]
+    kd = cKDTree(ref)
+    return kd, kd.query(held)[0]
+
+
 def tree_map(frame_bgr: np.ndarray, mask: np.ndarray, seed: int = 0,
-             max_samples: int = 4000) -> TreeMap | None:
+             max_samples: int = 4000, lab: np.ndarray | None = None) -> TreeMap | None:
     """Frame 1's pixels against the background in a band just outside the outline ``mask (H, W)``:
     a pixel is the tree when its CIELAB distance to the nearest background sample exceeds the 99th
     percentile of held-out background samples' distances plus 2 units (at least
-    ``MIN_CONTRAST``). None when the outline
-    leaves no background band (it fills the frame)."""
+    ``MIN_CONTRAST``). ``lab`` the frame's :func:`frame_lab` if already computed. None when the
+    outline leaves no background band (it fills the frame)."""
     mask = np.asarray(mask, bool)
     h, w = mask.shape
     ys, _ = np.nonzero(mask)
@@ -105,12 +120,10 @@ def tree_map(frame_bgr: np.ndarray, mask: np.ndarray, seed: int = 0,
     by, bx = np.nonzero(near & ~mask)
     if len(by) < 50:
         return None
-    lab = cv2.cvtColor(cv2.GaussianBlur(frame_bgr, (0, 0), 0.7), cv2.COLOR_BGR2LAB).astype(np.float32)
-    rng = np.random.default_rng(seed)
-    pick = rng.choice(len(by), min(2 * max_samples, len(by)), replace=False)
-    ref, held = pick[:len(pick) // 2], pick[len(pick) // 2:]
-    kd = cKDTree(lab[by[ref], bx[ref]])
-    d_bg, _ = kd.query(lab[by[held], bx[held]])
+    if lab is None:
+        lab = frame_lab(frame_bgr)
+    pick = np.random.default_rng(seed).choice(len(by), min(2 * max_samples, len(by)), replace=False)
+    kd, d_bg = colour_reference(lab[by[pick], bx[pick]])
     iy, ix = np.nonzero(mask)
     d, _ = kd.query(lab[iy, ix])
     dist = np.zeros((h, w), np.float32)

@@ -20,9 +20,7 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
-from scipy.spatial import cKDTree
-
-from .branch_fit import tree_map
+from .branch_fit import colour_reference, frame_lab, tree_map
 
 #: trunk samples below this count say nothing about the bark's colour
 MIN_TRUNK_SAMPLES = 20
@@ -48,9 +46,8 @@ def bark_coloured(lab: np.ndarray, trunk: np.ndarray, inside: np.ndarray, tol: f
     if len(ty) < MIN_TRUNK_SAMPLES:
         return None
     pick = np.random.default_rng(seed).permutation(len(ty))[:2 * max_samples]
-    ref, held = pick[: len(pick) // 2], pick[len(pick) // 2:]
-    kd = cKDTree(lab[ty[ref], tx[ref]])
-    spread = float(np.percentile(kd.query(lab[ty[held], tx[held]])[0], 95))
+    kd, d_held = colour_reference(lab[ty[pick], tx[pick]])
+    spread = float(np.percentile(d_held, 95))
     iy, ix = np.nonzero(inside)
     out = np.zeros(inside.shape, bool)
     out[iy, ix] = kd.query(lab[iy, ix])[0] <= spread + tol
@@ -62,13 +59,13 @@ def frame_evidence(first_bgr: np.ndarray, mask: np.ndarray, trunk: np.ndarray, t
     """Frame-1 evidence (module docstring) on ``first_bgr (h, w, 3)`` uint8 inside ``mask (h, w)``,
     bark colour from the ``trunk (h, w)`` bool pixels; None when the outline leaves no background
     band to compare with."""
-    tm = tree_map(first_bgr, mask, seed)
+    lab = frame_lab(first_bgr)
+    tm = tree_map(first_bgr, mask, seed, lab=lab)
     if tm is None:
         return None
     level = tm.level()
     background = cv2.GaussianBlur(1.0 - level, (0, 0), 1.0)
     background[~mask] = 1.0
-    lab = cv2.cvtColor(cv2.GaussianBlur(first_bgr, (0, 0), 0.7), cv2.COLOR_BGR2LAB).astype(np.float32)
     coloured = bark_coloured(lab, trunk & mask, mask, tol, seed)
     if coloured is None:
         return FrameEvidence(None, background, float("nan"))

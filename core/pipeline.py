@@ -202,8 +202,9 @@ def first_frame(res: Result) -> np.ndarray | None:
 
 def add_leaves(res: Result, tree: Tree3D, s: Settings, frame: np.ndarray | None = None,
                tree_px: np.ndarray | None = None) -> Tree3D:
-    """Leaf clusters from the frame-1 Harris points (``tree.leaves``); the tree unchanged when
-    ``s.leaves`` is None or frame 1 cannot be read again. ``frame`` frame 1 if already read."""
+    """Leaf clusters from the frame-1 Harris points (``tree.leaves``, placed from the tree's
+    ``meta["base_px"]`` as :func:`build_3d` records it); the tree unchanged when ``s.leaves`` is
+    None or frame 1 cannot be read again. ``frame`` frame 1 if already read."""
     if s.leaves is None:
         return tree
     if frame is None:
@@ -214,7 +215,7 @@ def add_leaves(res: Result, tree: Tree3D, s: Settings, frame: np.ndarray | None 
     # the paper's seeds: frame 1's Harris corners inside the outline (all of them, not only
     # those that tracked well through the clip)
     points = detect_corners(cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY), mask, s.track)
-    # the tree's own base: the branch fit may have moved the trunk onto its centre line
-    base_px = np.asarray(tree.meta.get("base_px", res.skeleton.nodes2d[0, 0]), float)
-    tree.leaves = place_leaves(tree, points, frame, base_px, s.leaves, mask, tree_px)
+    # the tree's own base (the branch fit may have moved the trunk onto its centre line)
+    tree.leaves = place_leaves(tree, points, frame, np.asarray(tree.meta["base_px"], float), s.leaves,
+                               mask, tree_px)
     return tree

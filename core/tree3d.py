@@ -47,7 +47,6 @@ class LeafClusters:
     leaf_hz: float = 4.0
     leaf_angle: float = 0.26
 
-
     def scales(self) -> np.ndarray:
         """``(S,)`` size of each cluster relative to ``radius`` (1 when not set)."""
         return np.ones(len(self.node), np.float32) if self.scale is None else np.asarray(self.scale, np.float32)
