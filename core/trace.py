@@ -87,6 +87,14 @@ def ridge_filter(img: np.ndarray, scales) -> np.ndarray:
     return out
 
 
+def normalized(ridge: np.ndarray, inside: np.ndarray) -> tuple[np.ndarray, float]:
+    """``(clip(ridge / s, 0, 1), s)`` with ``s`` the 99th percentile of ``ridge (h, w)`` inside
+    ``inside (h, w)``; all zeros when there is no ridge there (s ≤ 1e-6)."""
+    r = ridge[inside]
+    s = float(np.percentile(r, 99)) if r.size else 0.0
+    return (np.clip(ridge / s, 0, 1) if s > 1e-6 else np.zeros_like(ridge)), s
+
+
 def sky_likeness(maps: AppearanceMaps) -> np.ndarray:
     """``(h, w)`` in [0, 1]: bright relative to the tree, steady over time and smooth in space."""
     inside = maps.mask
@@ -373,10 +381,7 @@ def with_frame1(params: TraceParams, maps: AppearanceMaps, rn: np.ndarray,
     if fe is None:
         return rn, None
     if fe.bark is not None:
-        rt = ridge_filter(fe.bark, params.frame_ridge_scales)
-        q = float(np.percentile(rt[mask], 99))
-        if q > 1e-6:
-            rn = np.maximum(rn, np.clip(rt / q, 0, 1))
+        rn = np.maximum(rn, normalized(ridge_filter(fe.bark, params.frame_ridge_scales), mask)[0])
     return rn, fe.background
 
 
@@ -440,10 +445,8 @@ def traced_skeleton(tracks: Tracks, hier: Hierarchy, outline: Outline, maps: App
     size = float(ys.max() - ys.min() + 1)                      # tree height, working px
     ev = bark_evidence(maps)
     ridge = ridge_filter(ev, params.ridge_scales)
-    inside_r = ridge[mask]
     warnings = []
-    rscale = float(np.percentile(inside_r, 99)) if inside_r.size else 0.0
-    rn = np.clip(ridge / rscale, 0, 1) if rscale > 1e-6 else np.zeros_like(ridge)
+    rn, rscale = normalized(ridge, mask)
     background = None
     if params.frame1:
         rn, background = with_frame1(params, maps, rn, size)
