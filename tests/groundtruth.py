@@ -5,9 +5,20 @@ All distances are in pixels of frame 1 and normalized by the true tree height.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 from scipy.spatial import cKDTree
+
+
+@lru_cache(maxsize=None)
+def true_labels(variant: str) -> np.ndarray:
+    """``(H, W)`` label image of a sample variant's frame 1 (``synth_tree.LABEL_BRANCH`` /
+    ``LABEL_LEAF``; rendered once per session). Read only."""
+    from tree_from_video.sample_videos import synth_tree
+    lab = synth_tree.render_labels(synth_tree.build_scene(synth_tree.config_for(variant)), 0)
+    lab.setflags(write=False)
+    return lab
 
 
 def sample_edges(nodes: np.ndarray, parents: np.ndarray, step: float = 1.0) -> tuple[np.ndarray, np.ndarray]:

@@ -9,6 +9,8 @@ from tree_from_video.core import pipeline
 from tree_from_video.core.tree3d import pipe_radii
 from tree_from_video.sample_videos import synth_tree
 
+from groundtruth import true_labels
+
 
 def _sky_with_bars(bars, h=240, w=240, jpeg=True):
     """A blue sky gradient with brown vertical bars ``(x_centre, width)`` px drawn at 1/16 px,
@@ -124,7 +126,7 @@ def test_measured_widths_match_the_true_branches(runs, variant):
     fit = bf.measure_branches(sk.parents, sk.nodes2d[0], tmap)
     vf = bf.fit_to_video(sk.parents, sk.level, sk.nodes2d[0], fit)
     assert vf.radius_px is not None
-    lab = synth_tree.render_labels(synth_tree.build_scene(synth_tree.config_for(variant)), 0)
+    lab = true_labels(variant)
     true_map = bf.TreeMap((lab == synth_tree.LABEL_BRANCH).astype(np.float32) * 100.0, 50.0, 0.0)
     truth = bf.measure_branches(sk.parents, sk.nodes2d[0], true_map).width_px
     trusted = vf.trusted & np.isfinite(truth)
@@ -147,7 +149,7 @@ def test_the_built_tree_has_the_videos_trunk(runs):
     s.fit_branches = False
     plain = pipeline.build_3d(res, s)
     assert fitted.meta["branch_fit"]["radii"] and "branch_fit" not in plain.meta
-    lab = synth_tree.render_labels(synth_tree.build_scene(synth_tree.config_for("sparse")), 0)
+    lab = true_labels("sparse")
     true_map = bf.TreeMap((lab == synth_tree.LABEL_BRANCH).astype(np.float32) * 100.0, 50.0, 0.0)
     sk = res.skeleton
     truth = bf.measure_branches(sk.parents, sk.nodes2d[0], true_map).width_px

@@ -226,8 +226,10 @@ def test_clusters_sit_on_the_true_tufts(runs):
     from tree_from_video.core import pipeline
     from tree_from_video.core.tree3d import plane_to_image
     from tree_from_video.sample_videos import synth_tree as st
+
+    from groundtruth import true_labels
     tree = pipeline.build_3d(runs["sparse"]["traced"], pipeline.Settings())
-    lab = st.render_labels(st.build_scene(st.config_for("sparse")), 0)
+    lab = true_labels("sparse")
     n, _, _, cent = cv2.connectedComponentsWithStats((lab == st.LABEL_LEAF).astype(np.uint8))
     c = plane_to_image(tree.leaves.pos.astype(float) / tree.meta["metres_per_px"], np.asarray(tree.meta["base_px"]))
     d, j = cKDTree(cent[1:]).query(c)

@@ -13,6 +13,7 @@ from tree_from_video.core import pipeline
 from tree_from_video.operators import scene_build
 from tree_from_video.sample_videos import synth_tree
 
+from groundtruth import true_labels
 from trees import empty_scene  # noqa: F401  (autouse fixture)
 
 #: measured (traced skeleton, the default look: twigs 2, curliness 0.3, rough bark, leaves, branch
@@ -51,10 +52,6 @@ def render_silhouette(tree, path: str) -> np.ndarray:
     bpy.ops.render.render(write_still=True)
     img = cv2.imread(path, cv2.IMREAD_UNCHANGED)
     return img[..., 3] > 127
-
-
-def true_labels(variant: str) -> np.ndarray:
-    return synth_tree.render_labels(synth_tree.build_scene(synth_tree.config_for(variant)), 0)
 
 
 def true_mask(variant: str) -> np.ndarray:
