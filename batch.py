@@ -167,7 +167,7 @@ def _plan_generation(args, pkg, InputError):
         return None
     from importlib import import_module
     from types import SimpleNamespace
-    gb = import_module(f"{pkg.__name__}.core.generate_batch")
+    gb = import_module(f"{pkg.__name__}.core.generate.batch")
     req = gb.GenerateRequest(count=args.generate, species=args.species, envelope=args.envelope, wind=args.wind,
                              audio=args.audio, seed=args.seed, nodes=args.nodes, frames_out=args.frames_out,
                              seconds=args.seconds, height_m=args.height,
@@ -222,8 +222,8 @@ def _generate_from_tree(args, pkg, plan, tree, name, outputs, wanted) -> int:
     """``VIDEO --generate N``: fit the species of the reconstructed ``tree``, save DIR/species.json,
     grow the trees (default envelope: the reconstruction's)."""
     from importlib import import_module
-    pgm = import_module(f"{pkg.__name__}.core.pgm")
-    lift3d = import_module(f"{pkg.__name__}.core.lift3d")
+    pgm = import_module(f"{pkg.__name__}.core.generate.species")
+    lift3d = import_module(f"{pkg.__name__}.core.reconstruct.lift")
     plan.model = pgm.fit_species(plan.gb.without_twigs(tree), name)
     plan.species_label = os.path.join(args.out, plan.gb.SPECIES_FILE)
     pgm.save_species(plan.species_label, plan.model)
@@ -247,8 +247,8 @@ def main(argv: list[str] | None = None) -> int:
         if not args.outline:
             raise errors.InputError("give the tree's outline in frame 1 with --outline OUTLINE.json|MASK.png|auto")
         pipeline = import_module(f"{pkg.__name__}.core.pipeline")
-        model = import_module(f"{pkg.__name__}.core.model")
-        overlay = import_module(f"{pkg.__name__}.core.overlay")
+        model = import_module(f"{pkg.__name__}.core.reconstruct.skeleton_io")
+        overlay = import_module(f"{pkg.__name__}.core.reconstruct.overlay")
         wanted = {"fbx": args.fbx, "usd": args.usd, "gltf": args.gltf, "blend": args.blend,
                   "preview": args.preview}
         blender_files = [n for k, n in (("fbx", "tree.fbx"), ("usd", "tree.usdc"), ("gltf", "tree.glb"),

@@ -12,8 +12,8 @@ import argparse
 import time
 
 import numpy as np
-
 from _package import load_package
+from tree_from_video.core.generate import species
 
 
 def main() -> None:
@@ -22,8 +22,8 @@ def main() -> None:
     ap.add_argument("--species", default="broad")
     args = ap.parse_args()
     load_package()
-    from tree_from_video.core import envelopes, forest, growth, pgm
-    model = pgm.load_species(pgm.species_library()[args.species])
+    from tree_from_video.core.generate import envelopes, forest, growth
+    model = species.load_species(species.species_library()[args.species])
     env = envelopes.topiary("circle", 8.0)
     p = growth.GrowParams(node_budget=201, n_frames=250)
     growth.grow_tree(model, env, p)                                   # warm-up (imports, caches)

@@ -9,8 +9,8 @@ from _package import load_package  # noqa: E402
 
 pkg = load_package()
 import bpy  # noqa: E402
-
-from tree_from_video.core import pipeline  # noqa: E402
+from samples import plain_settings
+from tree_from_video.core import pipeline
 from tree_from_video.operators import scene_build  # noqa: E402
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -19,7 +19,7 @@ TARGET_S = 10.0
 
 def main():
     folder = os.path.join(ROOT, "sample_videos", "broad")
-    s = pipeline.Settings()
+    s = plain_settings()
     s.twigs.depth = 2
     s.leaves.cards = 1
     res = pipeline.run(os.path.join(folder, "video.mp4"), os.path.join(folder, "outline.json"), s)

@@ -8,8 +8,8 @@ from __future__ import annotations
 import time
 
 import numpy as np
-
 from _package import load_package
+from tree_from_video.core.reconstruct import motion
 
 
 def binary_tree(levels: int = 7, frames: int = 300, seed: int = 0):
@@ -40,7 +40,6 @@ def binary_tree(levels: int = 7, frames: int = 300, seed: int = 0):
 
 def main() -> None:
     load_package()
-    from tree_from_video.core import motion
     parents, pos, level, targets = binary_tree()
     rest = pos.copy()
     rest[:, 1] = np.random.default_rng(1).uniform(-20, 20, len(pos)) * (level > 1)

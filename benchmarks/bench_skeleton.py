@@ -12,6 +12,7 @@ import tempfile
 import time
 
 from _package import load_package
+from tree_from_video.core.reconstruct import skeleton2d
 
 
 def main() -> None:
@@ -22,8 +23,9 @@ def main() -> None:
     ap.add_argument("--variant", default="broad")
     args = ap.parse_args()
     load_package()
-    from tree_from_video.core import hierarchy, pipeline, skeleton2d, trace, video
+    from tree_from_video.core import pipeline
     from tree_from_video.core.outline import load_outline
+    from tree_from_video.core.reconstruct import hierarchy, trace, video
     from tree_from_video.sample_videos import synth_tree
 
     with tempfile.TemporaryDirectory() as tmp:
@@ -63,9 +65,8 @@ def main() -> None:
 def hierarchy_5000() -> float:
     """Seconds to build the hierarchy of 5,000 synthetic swaying tracks over 300 frames."""
     import numpy as np
-
-    from tree_from_video.core import hierarchy
-    from tree_from_video.core.tracks import Tracks
+    from tree_from_video.core.reconstruct import hierarchy
+    from tree_from_video.core.reconstruct.tracks import Tracks
     rng = np.random.default_rng(0)
     P, F = 5000, 300
     p0 = rng.uniform(0, 600, (P, 2)).astype(np.float32)

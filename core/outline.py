@@ -12,7 +12,7 @@ import cv2
 import numpy as np
 
 from .errors import InputError
-from .jsonio import read_json
+from .fileio import read_json
 
 MIN_AREA_PX = 64.0  # smaller outlines cannot hold a tree's worth of corners
 

@@ -1,148 +1,80 @@
-"""The stages in order: one streaming pass over the video (tracks + bark statistics) →
-hierarchy → skeleton2d (:func:`run`), then lift3d → motion → :class:`Tree3D` (:func:`build_3d`)."""
+"""The end-to-end pipeline: a video and an outline in, an animated 3D tree with its details out.
+
+:class:`Settings` are the product's defaults (those of the panel and the batch options);
+:func:`run` the 2D stages (:mod:`.reconstruct.run`), :func:`build_3d` the 3D lift, the motion,
+the branch widths from frame 1, the twigs and the leaves (:mod:`.reconstruct`, :mod:`.detail`).
+"""
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass, field, replace
 
 import cv2
 import numpy as np
 
-from . import cache
-from .appearance import AppearanceAccumulator, AppearanceMaps
-from .branch_fit import fit_to_video, measure_branches, tree_map
+from .detail.branch_mesh import MeshParams, check_params
+from .detail.leaf_clusters import LeafParams, check_leaf_params
+from .detail.leaf_seeds import place_leaves
+from .detail.twigs import TwigParams, add_twigs, check_twig_params
+from .envelope import envelope_to_meta
 from .errors import InputError
-from .hierarchy import Hierarchy, HierarchyParams, build_hierarchy
-from .leaves import LeafParams, place_leaves
-from .lift3d import LiftParams, envelope_to_meta, lift
-from .motion import MotionParams, solve_motion
-from .outline import Outline, load_outline, polygon_outline
-from .progress import ProgressFn, report, sub_progress
-from .skeleton2d import Skeleton2D, paper_skeleton
-from .trace import TraceParams, traced_skeleton
-from .twigs import TwigParams, add_twigs
-from .tracks import Tracker, TrackParams, Tracks, detect_corners
+from .params import param, same_as
+from .progress import ProgressFn, sub_progress
+from .reconstruct.branch_fit import fit_to_video, measure_branches, tree_map
+from .reconstruct.lift import LiftParams, lift
+from .reconstruct.motion import MotionParams, solve_motion
+from .reconstruct.run import (
+    SKELETON_KINDS,
+    ReconstructSettings,
+    Result,
+    check_reconstruct,
+    track_video,
+)
+from .reconstruct.run import run as run_2d
+from .reconstruct.tracks import detect_corners
+from .reconstruct.video import iter_frames
 from .tree3d import Tree3D, image_to_plane, pipe_radii
-from .video import VideoInfo, iter_frames, open_video, parse_frame_range, prefetch
 
-SKELETON_KINDS = ("traced", "paper")
+__all__ = ["SKELETON_KINDS", "Result", "Settings", "add_leaves", "build_3d", "check_settings", "first_frame",
+           "run", "track_video"]
 
 
 @dataclass
-class Settings:
-    """Everything a run needs besides the input files."""
+class Settings(ReconstructSettings):
+    """Everything a run needs besides the input files: the 2D stages' settings
+    (:class:`ReconstructSettings`) and those of the 3D tree. The defaults are the product's: the
+    panel and the batch options read them (and their ranges) from these dataclasses."""
 
-    levels: int = 6
-    skeleton: str = "traced"
-    fold_alpha: float = 0.4         # paper skeleton: x'_i += α (x'_j − x'_i)
-    frames: str | None = None       # "A:B", 0-based, B exclusive
-    scale: float = 1.0              # downscale factor for the video (0 < scale <= 1)
-    cache_dir: str | None = None    # keep tracks + hierarchy here, keyed by video and settings
-    track: TrackParams = field(default_factory=TrackParams)
-    trace: TraceParams = field(default_factory=TraceParams)
     lift: LiftParams = field(default_factory=LiftParams)
     motion: MotionParams = field(default_factory=MotionParams)
-    height_m: float = 10.0          # the tree's height in the scene, metres
+    height_m: float = param(10.0, 0.0, 1000.0, lo_open=True, what="tree height", unit="m")
     tip_radius: float = 0.0025      # branch radius at the tips, share of the height (pipe model)
     pipe_exponent: float = 2.0      # r_parent^e = Σ r_child^e
-    twigs: TwigParams = field(default_factory=TwigParams)   # depth 0: no twigs
-    curliness: float = 0.0          # branch mesh: minimum-jerk bend, 0..1 (recorded in meta["mesh"])
-    bark: str = "none"              # branch mesh: "none", "smooth" or "rough" (recorded in meta["mesh"])
+    twigs: TwigParams = field(default_factory=TwigParams)
+    curliness: float = same_as(MeshParams, "curliness")   # branch mesh (recorded in meta["mesh"])
+    bark: str = same_as(MeshParams, "bark")               # branch mesh (recorded in meta["mesh"])
     leaves: LeafParams | None = field(default_factory=LeafParams)   # None: bare branches
     fit_branches: bool = True       # branch widths and centre lines measured in frame 1 (branch_fit)
 
 
-@dataclass
-class Result:
-    info: VideoInfo
-    outline: Outline
-    start: int
-    stop: int
-    tracks: Tracks
-    hierarchy: Hierarchy
-    maps: AppearanceMaps
-    skeleton: Skeleton2D
-
-    @property
-    def warnings(self) -> list[str]:
-        return list(dict.fromkeys(self.tracks.warnings + self.skeleton.warnings))
-
-
 def check_settings(s: Settings) -> None:
-    if s.skeleton not in SKELETON_KINDS:
-        raise InputError(f"unknown skeleton '{s.skeleton}'; choose one of {', '.join(SKELETON_KINDS)}")
-    if not 2 <= s.levels <= 9:
-        raise InputError(f"levels {s.levels} out of range; use 2..9 (the paper uses 5–7)")
-    if not 0 <= s.twigs.depth <= 6:
-        raise InputError(f"twig depth {s.twigs.depth} out of range; use 0..6 (0: no twigs)")
-    from .branch_mesh import MeshParams, check_params
+    """Raise :class:`InputError` for the first setting out of range (2D stages, twigs, mesh, leaves)."""
+    check_reconstruct(s)
+    if not s.height_m > 0:
+        raise InputError(f"tree height {s.height_m} m is not positive; give e.g. 10")
+    check_twig_params(s.twigs)
     check_params(MeshParams(curliness=s.curliness, bark=s.bark))
     if s.leaves is not None:
-        from .leaves import check_leaf_params
         check_leaf_params(s.leaves)
-
-
-def track_video(info: VideoInfo, outline: Outline, start: int, stop: int, params: TrackParams,
-                progress: ProgressFn | None = None) -> tuple[Tracks, AppearanceMaps]:
-    """One pass over frames ``start..stop-1``: tracks and appearance maps together."""
-    frames = prefetch(iter_frames(info, start, stop))
-    first = next(frames, None)
-    if first is None:
-        raise InputError(f"video '{info.path}' has no frame {start}; check --frames")
-    tracker = Tracker(first, outline, info.fps, start, params)
-    if len(tracker.raw) < 8:
-        raise InputError(f"only {len(tracker.raw)} trackable corners inside the outline; "
-                         "outline the whole tree (leaves and trunk) in the first frame")
-    acc = AppearanceAccumulator(first, outline)
-    total = stop - start
-    for k, frame in enumerate(frames, start=1):
-        gray = cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY)
-        tracker.feed(gray)
-        acc.feed(gray, tracker.camera[-1])
-        if k % 5 == 0:
-            report(progress, "tracking", k / total)
-    return tracker.result(), acc.maps()
 
 
 def run(video: str, outline_path, settings: Settings | None = None,
         progress: ProgressFn | None = None) -> Result:
-    """Video + outline → tracks, hierarchy and moving 2D skeleton. Raises InputError on bad input.
-
-    ``outline_path``: a polygon .json or mask image path, ``"auto"`` (what sways in the first
-    seconds, :mod:`.auto_outline`), or a polygon ``(M, 2)`` array in pixels of the original video
-    (e.g. from a Blender Mask)."""
+    """Video + outline → tracks, hierarchy and moving 2D skeleton (:func:`.reconstruct.run.run`),
+    after checking every setting (also those of :func:`build_3d`, so nothing fails after the
+    tracking). Raises InputError on bad input."""
     s = settings or Settings()
     check_settings(s)
-    info = open_video(video, s.scale)
-    start, stop = parse_frame_range(s.frames, info.frame_count)
-    if isinstance(outline_path, str) and outline_path == "auto":
-        from .auto_outline import auto_outline
-        outline = auto_outline(info, start)
-    elif isinstance(outline_path, (str, os.PathLike)):
-        outline = load_outline(outline_path, info.width, info.height, s.scale)
-    else:
-        outline = polygon_outline(np.asarray(outline_path, float) * s.scale, info.width, info.height)
-    cached = key = None
-    if s.cache_dir:
-        key = cache.stage_key(video, outline.mask, start, stop, s.scale, s.track, s.levels)
-        cached = cache.load(s.cache_dir, key)
-    if cached is not None:
-        tracks, maps, hier = cached
-        report(progress, "tracking (cached)", 0.85)
-    else:
-        tracks, maps = track_video(info, outline, start, stop, s.track, sub_progress(progress, 0.0, 0.7))
-        hier = build_hierarchy(tracks, HierarchyParams(levels=s.levels), sub_progress(progress, 0.7, 0.85))
-        if key is not None:
-            try:
-                cache.save(s.cache_dir, key, tracks, maps, hier)
-            except OSError:
-                pass                # a cache that cannot be written only costs time
-    sk_prog = sub_progress(progress, 0.85, 1.0)
-    if s.skeleton == "paper":
-        skel = paper_skeleton(tracks, hier, outline, alpha=s.fold_alpha, progress=sk_prog)
-    else:
-        skel = traced_skeleton(tracks, hier, outline, maps, s.trace, sk_prog)
-    return Result(info, outline, start, stop, tracks, hier, maps, skel)
+    return run_2d(video, outline_path, s, progress)
 
 
 def build_3d(res: Result, s: Settings | None = None, name: str = "Tree",

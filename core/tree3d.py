@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .model import atomic_savez
+from .fileio import atomic_savez
 
 FORMAT = "tree_from_video.tree3d"
 VERSION = 1
@@ -20,7 +20,7 @@ VERSION = 1
 
 @dataclass
 class LeafClusters:
-    """Leaf clusters riding on the tree's bones (built by :mod:`.leaves`).
+    """Leaf clusters riding on the tree's bones (built by :mod:`.detail.leaf_seeds` and :mod:`.detail.leaf_clusters`).
 
     ``node (S,)`` int32 tree node whose bone carries the cluster (the bone into that node; the
     root's first child for node 0); ``pos (S, 3)`` float32 cluster centre at rest (tree frame 0),
@@ -31,7 +31,7 @@ class LeafClusters:
     metres of one leaf card's length; ``cards`` leaf cards per cluster; ``seed`` of the template;
     ``scale (S,)`` each cluster's size relative to ``radius`` (smaller near the outline's edge);
     ``leaf_hz``, ``leaf_angle`` (radians): every leaf's own high-frequency flap about its stem,
-    ``leaf_angle · sin(2π leaf_hz t + φ_leaf)`` (:func:`.leaves.leaf_flap_offsets`)."""
+    ``leaf_angle · sin(2π leaf_hz t + φ_leaf)`` (:func:`.detail.leaf_clusters.leaf_flap_offsets`)."""
 
     node: np.ndarray
     pos: np.ndarray
@@ -89,14 +89,14 @@ class Tree3D:
 
     def edges(self) -> np.ndarray:
         """``(N-1, 2)`` (parent, child) pairs: one bone per edge, named after the child node."""
-        from .skeleton2d import edges_of
+        from .topology import edges_of
         return edges_of(self.parents)
 
 
 def pipe_radii(parents: np.ndarray, tip_radius: float, exponent: float = 2.0) -> np.ndarray:
     """Pipe-model radii: tips get ``tip_radius``; ``r_parent^e = Σ r_child^e`` (e ≈ 2), and a node
     on a chain (one child) keeps its child's radius. Returns ``(N,)``."""
-    from .skeleton2d import topological_order
+    from .topology import topological_order
     r = np.zeros(len(parents))
     has_child = np.zeros(len(parents), bool)
     has_child[parents[parents >= 0]] = True

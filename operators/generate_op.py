@@ -14,14 +14,20 @@ import time
 import bpy
 import numpy as np
 
-from ..core import envelopes, forest, growth, pgm
+from ..core.envelope import envelope_from_meta
 from ..core.errors import InputError
+from ..core.generate import envelopes, forest, growth, species
 from ..core.job import Job
-from ..core.lift3d import envelope_from_meta
 from ..core.progress import sub_progress
 from . import reconstruct_op
 from .reconstruct_op import _JobOperator, _status
-from .scene_build import _set_scene_timing, build_tree, deselect_all, evaluated_world_mesh, remove_collection
+from .scene_build import (
+    _set_scene_timing,
+    build_tree,
+    deselect_all,
+    evaluated_world_mesh,
+    remove_collection,
+)
 
 #: seconds of building per timer tick while a forest is built
 BUILD_SLICE_S = 0.15
@@ -34,15 +40,15 @@ def species_from(props):
     here (fast); for the last reconstruction the tree is returned and fitted in the worker."""
     src = props.species_source
     if src == "LIBRARY":
-        lib = pgm.species_library()
+        lib = species.species_library()
         if props.species_name not in lib:
             raise InputError(f"no species '{props.species_name}' in the library ({', '.join(sorted(lib))}); "
                              "pick one of those or a species file")
-        return pgm.load_species(lib[props.species_name]), None
+        return species.load_species(lib[props.species_name]), None
     if src == "FILE":
         if not props.species_path:
             raise InputError("no species file chosen; pick a .json written by Save Species, or use the library")
-        return pgm.load_species(bpy.path.abspath(props.species_path)), None
+        return species.load_species(bpy.path.abspath(props.species_path)), None
     tree = reconstruct_op.LAST_TREE.get("tree")
     if tree is None:
         raise InputError("no reconstruction in this session; press Reconstruct first, or pick a species "
@@ -121,7 +127,7 @@ def _grow_work(model, tree_src, spec, params, audio, slots_fn=None):
     def work(progress):
         m = model
         if m is None:
-            m = pgm.fit_species(tree_src, tree_src.name)
+            m = species.fit_species(tree_src, tree_src.name)
         p = params
         env = envelopes.envelope_from_any(spec, p.height_m or 10.0)
         if slots_fn is None:
@@ -356,8 +362,8 @@ class TREE_OT_save_species(bpy.types.Operator):
                 path += ".json"
             if os.path.exists(path) and not self.overwrite:
                 raise InputError(f"'{path}' exists; tick Overwrite or choose another name")
-            model = pgm.fit_species(tree, os.path.splitext(os.path.basename(path))[0])
-            pgm.save_species(path, model)
+            model = species.fit_species(tree, os.path.splitext(os.path.basename(path))[0])
+            species.save_species(path, model)
         except (InputError, OSError) as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}

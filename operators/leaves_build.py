@@ -9,12 +9,11 @@ max_clusters`` caps it).
 """
 from __future__ import annotations
 
+import bpy
 import numpy as np
 
-import bpy
-
-from ..core import bones as bn
-from ..core.leaves import flap_weights, leaf_flap_offsets, leaf_mesh
+from ..core import bones
+from ..core.detail.leaf_clusters import flap_weights, leaf_flap_offsets, leaf_mesh
 from ..core.tree3d import Tree3D
 from . import action_api
 
@@ -31,7 +30,7 @@ def add_leaf_edit_bones(data, tree: Tree3D) -> list[str]:
     cluster's node. Returns the bone names (``L0000``…) in cluster order."""
     lv = tree.leaves
     names = leaf_bone_names(lv.count)
-    parent_names = {int(c): n for c, n in zip(bn.bone_edges(tree.parents)[:, 1], bn.bone_names(tree.parents))}
+    parent_names = {int(c): n for c, n in zip(bones.bone_edges(tree.parents)[:, 1], bones.bone_names(tree.parents))}
     missing = sorted(set(int(n) for n in np.unique(lv.node)) - set(parent_names))
     if missing:
         raise RuntimeError(f"leaf clusters sit on nodes without a bone: {missing[:5]}")
@@ -215,7 +214,7 @@ def leaf_material(name: str, image_path: str | None = None, tint=(0.3, 0.5, 0.2)
                 pass
         mat.use_backface_culling = False
         img = leaf_image(name, image_path, tint)
-        from .scene_build import principled_nodes            # scene_build imports this module
+        from .scene_build import principled_nodes  # scene_build imports this module
         nt, out, bsdf = principled_nodes(mat)
         tex = nt.nodes.new("ShaderNodeTexImage")
         tex.image = img

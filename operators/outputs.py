@@ -13,7 +13,7 @@ import bpy
 import numpy as np
 
 from ..core.errors import InputError
-from ..core.model import publish, temp_path
+from ..core.fileio import publish, temp_path
 from ..core.tree3d import Tree3D
 from . import export
 from .scene_build import build_tree

@@ -15,7 +15,7 @@ import numpy as np
 from ..core import pipeline
 from ..core.errors import InputError
 from ..core.job import Job
-from ..core.video import open_video
+from ..core.reconstruct.video import open_video
 from . import annotation, clip_overlay
 from .scene_build import build_tree
 

@@ -12,9 +12,9 @@ import time
 import bpy
 import numpy as np
 
-from ..core import bones as bn
-from ..core import branch_mesh as bm
-from ..core.branch_mesh import branch_radii, tube_arrays  # noqa: F401  (re-exported)
+from ..core import bones
+from ..core.detail import branch_mesh as bm
+from ..core.detail.branch_mesh import branch_radii, tube_arrays
 from ..core.errors import InputError
 from ..core.tree3d import Tree3D
 from . import action_api, leaves_build
@@ -80,10 +80,10 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
         timings["armature"] = time.perf_counter() - t
 
         t = time.perf_counter()
-        local = bn.local_rotations(tree.parents, tree.nodes3d, rest)
+        local = bones.local_rotations(tree.parents, tree.nodes3d, rest)
         timings["rotations"] = time.perf_counter() - t
         t = time.perf_counter()
-        action, make_fcurve = _key_pose(rig, local, bn.bone_names(tree.parents), names["action"], created)
+        action, make_fcurve = _key_pose(rig, local, bones.bone_names(tree.parents), names["action"], created)
         if leaf_names:
             leaves_build.key_leaf_bones(rig, make_fcurve, tree, leaf_names)
         timings["keys"] = time.perf_counter() - t
@@ -207,7 +207,7 @@ def _validate(tree: Tree3D, collection_name: str, sides: int) -> None:
     radius = np.asarray(tree.radius, np.float64)
     if radius.shape != (tree.n_nodes,) or not np.isfinite(radius).all() or (radius < 0).any():
         raise InputError("the tree's radii must be one finite, non-negative value per node; rebuild the 3D tree")
-    bn.check_positions(tree.parents, tree.nodes3d)        # shapes, finite positions, no zero-length bone
+    bones.check_positions(tree.parents, tree.nodes3d)        # shapes, finite positions, no zero-length bone
 
 
 # ----------------------------------------------------------------------------- rollback
@@ -267,9 +267,9 @@ def _build_armature(context, tree: Tree3D, coll, name: str, created: _Created, e
 
     Returns ``(object, rest (B, 3, 3))``: rest rotations read back from ``bone.matrix_local`` in
     :func:`bones.bone_edges` order."""
-    edges = bn.bone_edges(tree.parents)
-    names = bn.bone_names(tree.parents)
-    parent_bone = bn.bone_parents(tree.parents)
+    edges = bones.bone_edges(tree.parents)
+    names = bones.bone_names(tree.parents)
+    parent_bone = bones.bone_parents(tree.parents)
     rest_pos = np.asarray(tree.nodes3d[0], np.float32)
     data = created.add(bpy.data.armatures, bpy.data.armatures.new(name))
     data.display_type = "STICK"
@@ -395,7 +395,7 @@ def _build_mesh(tree: Tree3D, rest: np.ndarray, rig, coll, name: str, material, 
 
     ob = created.add(bpy.data.objects, bpy.data.objects.new(name, me))
     coll.objects.link(ob)
-    bone_names = bn.bone_names(tree.parents)
+    bone_names = bones.bone_names(tree.parents)
     per_bone = g["rings"] * g["sides"]
     for b, bname in enumerate(bone_names):         # one call per bone (vertex weights have no foreach_set)
         ob.vertex_groups.new(name=bname).add(list(range(b * per_bone, (b + 1) * per_bone)), 1.0, "REPLACE")

@@ -3,8 +3,9 @@ import os
 
 import bpy
 
-from ..core import model, pipeline
+from ..core import pipeline
 from ..core.errors import InputError
+from ..core.reconstruct import skeleton_io
 
 
 class TREE_OT_trace_skeleton(bpy.types.Operator):
@@ -29,7 +30,7 @@ class TREE_OT_trace_skeleton(bpy.types.Operator):
             path = os.path.join(out, "skeleton.npz")
             if os.path.exists(path) and not props.overwrite:
                 raise InputError(f"{path} exists; tick Overwrite or choose another output folder")
-            model.save_skeleton(path, res.skeleton)
+            skeleton_io.save_skeleton(path, res.skeleton)
         except InputError as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}

@@ -5,7 +5,7 @@
 broad and sparse are the committed samples (sample_videos/); conifer is generated with
 tests/samples.py (variant "conifer") into DIR and lifted with the conifer setting (leader kept).
 Each is reconstructed with the default settings (pipeline.run + build_3d, 10 m tall), then
-pgm.fit_species writes <name>.json.
+species.fit_species writes <name>.json.
 """
 from __future__ import annotations
 
@@ -15,6 +15,8 @@ import os
 import sys
 import tempfile
 import time
+
+from tree_from_video.core.generate import species
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 PACKAGE = "tree_from_video"
@@ -36,13 +38,13 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     _load_package()
     sys.path.insert(0, os.path.join(ROOT, "tests"))
-    from tree_from_video.core import pgm, pipeline
-    from samples import committed, generate
+    from samples import committed, generate, plain_settings
+    from tree_from_video.core import pipeline
     work = args.work or tempfile.mkdtemp(prefix="species-")
     os.makedirs(args.out, exist_ok=True)
     for name in ("broad", "sparse", "conifer"):
         t0 = time.time()
-        s = pipeline.Settings()
+        s = plain_settings()
         if name == "conifer":
             folder = generate("conifer", os.path.join(work, "conifer"))
             s.lift.conifer = True
@@ -50,11 +52,11 @@ def main(argv=None) -> int:
             folder = committed(name)
         res = pipeline.run(os.path.join(folder, "video.mp4"), os.path.join(folder, "outline.json"), s)
         tree = pipeline.build_3d(res, s, name=name)
-        model = pgm.fit_species(tree, name)
+        model = species.fit_species(tree, name)
         path = os.path.join(args.out, f"{name}.json")
-        pgm.save_species(path, model)
+        species.save_species(path, model)
         print(f"{name}: {tree.n_nodes} nodes, {tree.n_frames} frames -> {path} "
-              f"({time.time() - t0:.1f} s) {pgm.model_summary(model)}", flush=True)
+              f"({time.time() - t0:.1f} s) {species.model_summary(model)}", flush=True)
     return 0
 
 

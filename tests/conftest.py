@@ -24,8 +24,8 @@ ALL_VARIANTS = BAR_VARIANTS + ("dense",)
 @pytest.fixture(scope="session")
 def runs(tmp_path_factory):
     """{variant: {"truth", "folder", "traced": Result, "paper": Result}} for every variant."""
+    from samples import generate, load_truth, plain_settings
     from tree_from_video.core import pipeline
-    from samples import generate, load_truth
     base = tmp_path_factory.mktemp("variants")
     out = {}
     for v in ALL_VARIANTS:
@@ -33,7 +33,7 @@ def runs(tmp_path_factory):
         entry = {"truth": load_truth(folder), "folder": folder}
         for kind in ("traced", "paper"):
             entry[kind] = pipeline.run(os.path.join(folder, "video.mp4"), os.path.join(folder, "outline.json"),
-                                       pipeline.Settings(skeleton=kind))
+                                       plain_settings(skeleton=kind))
         out[v] = entry
     return out
 

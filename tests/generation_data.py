@@ -4,7 +4,8 @@ from __future__ import annotations
 import functools
 import os
 
-from samples import committed
+from samples import committed, plain_settings
+from tree_from_video.core.generate import species
 
 
 @functools.lru_cache(maxsize=None)
@@ -12,12 +13,11 @@ def source_tree(name: str = "broad"):
     """The committed sample ``name`` reconstructed with default settings (Tree3D, metres)."""
     from tree_from_video.core import pipeline
     folder = committed(name)
-    s = pipeline.Settings()
+    s = plain_settings()
     res = pipeline.run(os.path.join(folder, "video.mp4"), os.path.join(folder, "outline.json"), s)
     return pipeline.build_3d(res, s, name=name)
 
 
 @functools.lru_cache(maxsize=None)
 def source_model(name: str = "broad"):
-    from tree_from_video.core import pgm
-    return pgm.fit_species(source_tree(name), name)
+    return species.fit_species(source_tree(name), name)

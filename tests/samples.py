@@ -4,7 +4,6 @@ from __future__ import annotations
 import os
 
 import numpy as np
-
 from tree_from_video.sample_videos import synth_tree
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -26,3 +25,15 @@ def generate(variant: str, folder: str, **overrides) -> str:
 def load_truth(folder: str) -> dict:
     with np.load(os.path.join(folder, "truth.npz"), allow_pickle=False) as z:
         return {k: z[k] for k in z.files}
+
+
+def plain_settings(**kw):
+    """``pipeline.Settings`` with no twigs and straight, round tubes (twig depth 0, curliness 0, bark
+    none): the settings the measured tests and the shipped species were made with, before the
+    product's defaults (twigs 2, curliness 0.3, rough bark) moved into the core's dataclasses."""
+    from tree_from_video.core import pipeline
+    from tree_from_video.core.detail.twigs import TwigParams
+    kw.setdefault("twigs", TwigParams(depth=0))
+    kw.setdefault("curliness", 0.0)
+    kw.setdefault("bark", "none")
+    return pipeline.Settings(**kw)

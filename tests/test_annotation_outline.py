@@ -13,13 +13,10 @@ import os
 import bpy
 import numpy as np
 import pytest
-
-import tree_from_video
+from samples import committed
 from tree_from_video.core.errors import InputError
 from tree_from_video.core.outline import polygon_to_mask
 from tree_from_video.operators import annotation, reconstruct_op
-
-from samples import committed
 from trees import addon  # noqa: F401  (autouse fixture: the add-on registered per test)
 
 HERE = os.path.dirname(os.path.abspath(__file__))

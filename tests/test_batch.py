@@ -6,7 +6,6 @@ import sys
 
 import numpy as np
 import pytest
-
 from samples import ROOT, committed
 
 BATCH = os.path.join(ROOT, "batch.py")

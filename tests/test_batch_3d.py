@@ -5,10 +5,8 @@ import sys
 
 import numpy as np
 import pytest
-
-from tree_from_video.core.tree3d import load_tree
-
 from samples import ROOT, committed
+from tree_from_video.core.tree3d import load_tree
 
 BATCH = os.path.join(ROOT, "batch.py")
 VIDEO = os.path.join(committed("broad"), "video.mp4")

@@ -3,13 +3,12 @@ against the synthetic samples' true branch masks, and what they do to the built 
 import cv2
 import numpy as np
 import pytest
-
-from tree_from_video.core import branch_fit as bf
+from groundtruth import true_labels
+from samples import plain_settings
 from tree_from_video.core import pipeline
+from tree_from_video.core.reconstruct import branch_fit as bf
 from tree_from_video.core.tree3d import pipe_radii
 from tree_from_video.sample_videos import synth_tree
-
-from groundtruth import true_labels
 
 
 def _sky_with_bars(bars, h=240, w=240, jpeg=True):
@@ -144,7 +143,7 @@ def test_the_built_tree_has_the_videos_trunk(runs):
     """build_3d with and without the fit: the trunk's radius equals half the video's trunk width
     (measured on the true mask) within 15 %, where the pipe model alone is off by more."""
     res = runs["sparse"]["traced"]
-    s = pipeline.Settings(leaves=None)
+    s = plain_settings(leaves=None)
     fitted = pipeline.build_3d(res, s)
     s.fit_branches = False
     plain = pipeline.build_3d(res, s)
@@ -167,7 +166,7 @@ def test_built_branches_taper_from_root_to_tip(runs, variant):
     """No limb of the built tree is thicker than the branch it grows from. Before the parent
     rule and the taper, broad had 11 branches over 1.15 × their parent's radius and a limb at
     1.27 × the trunk's (a knot at the fork in the preview)."""
-    tree = pipeline.build_3d(runs[variant]["traced"], pipeline.Settings(leaves=None))
+    tree = pipeline.build_3d(runs[variant]["traced"], plain_settings(leaves=None))
     first = tree.meta["twigs"]["first_node"] if "twigs" in tree.meta else tree.n_nodes
     n = np.arange(1, first)
     r, p = tree.radius.astype(float), tree.parents

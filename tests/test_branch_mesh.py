@@ -6,15 +6,17 @@ import time
 import bpy
 import numpy as np
 import pytest
-
-from tree_from_video.core import bones as bn
-from tree_from_video.core import branch_mesh as bm
-from tree_from_video.core.details import BARK_PRESETS
+from tree_from_video.core import bones
+from tree_from_video.core.detail import branch_mesh as bm
+from tree_from_video.core.detail.shapes import BARK_PRESETS
 from tree_from_video.core.errors import InputError
 from tree_from_video.operators import scene_build
-
-from trees import empty_scene  # noqa: F401  (autouse fixture)
-from trees import assert_closed_tubes, binary_tree, broad_tree
+from trees import (
+    assert_closed_tubes,
+    binary_tree,
+    broad_tree,
+    empty_scene,  # noqa: F401  (autouse fixture)
+)
 
 
 @pytest.fixture(scope="module")
@@ -23,7 +25,7 @@ def tree():
 
 
 def _geometry(tree, **kw):
-    rest = bn.rest_frames(tree.parents, tree.nodes3d[0])
+    rest = bones.rest_frames(tree.parents, tree.nodes3d[0])
     r_head, r_tail = bm.branch_radii(tree.parents, tree.radius)
     sides = kw.pop("sides", 8)
     return rest, r_head, r_tail, bm.tube_arrays(tree.nodes3d[0], tree.parents, rest, r_head, r_tail, sides, **kw)
@@ -41,7 +43,7 @@ def test_three_sided_tube_by_hand():
     # one vertical bone 0→1 (2 m), then a child 1→2 along +x (1 m); radii 0.2 → 0.1 → 0.05
     parents = np.array([-1, 0, 1])
     pos = np.array([[0, 0, 0], [0, 0, 2.0], [1, 0, 2.0]])
-    rest = bn.rest_frames(parents, pos)
+    rest = bones.rest_frames(parents, pos)
     g = bm.tube_arrays(pos, parents, rest, np.array([0.2, 0.1]), np.array([0.1, 0.05]), 3)
     S, K = 3, 2
     assert len(g["co"]) == K * S * 2 and len(g["loop_start"]) == ((K - 1) * S + 2) * 2
@@ -79,7 +81,7 @@ def test_curliness_zero_gives_straight_tubes_on_the_bones(tree):
 def test_minimum_jerk_offset_by_hand():
     parents = np.array([-1, 0])
     pos = np.array([[0, 0, 0], [0, 0, 4.0]])
-    rest = bn.rest_frames(parents, pos)
+    rest = bones.rest_frames(parents, pos)
     g = bm.tube_arrays(pos, parents, rest, np.array([0.1]), np.array([0.1]), 8, curliness=1.0, rings=5, seed=3)
     o = bm.curl_offsets(rest, np.array([4.0]), 1.0, 3)[0]
     assert 0.5 * bm.CURL_SHARE * 4 <= np.linalg.norm(o) <= bm.CURL_SHARE * 4
@@ -161,7 +163,7 @@ def test_bark_frequencies_fold_below_nyquist():
 @pytest.mark.parametrize("curliness", [0.0, 1.0])
 def test_v_is_continuous_from_parent_to_child(tree, curliness):
     _, _, _, g = _geometry(tree, curliness=curliness)
-    parents_bone = bn.bone_parents(tree.parents)
+    parents_bone = bones.bone_parents(tree.parents)
     child = np.flatnonzero(parents_bone >= 0)
     K, S = g["rings"], 8
     uv = g["uv"].reshape(len(parents_bone), -1, 2)
@@ -211,7 +213,7 @@ def test_built_mesh_counts_weights_and_closure(tree):
     group, weight = _weights(ob)
     assert (group >= 0).all() and (weight == 1.0).all()                        # every vertex weighted
     names = [g.name for g in ob.vertex_groups]
-    assert names == bn.bone_names(tree.parents)
+    assert names == bones.bone_names(tree.parents)
     np.testing.assert_array_equal(group, np.repeat(np.arange(B), K * S))       # each ring to its bone
     co = assert_closed_tubes(me, K * S)
     ref = bm.tube_arrays(tree.nodes3d[0], tree.parents, _rest(res["armature"], tree),
@@ -226,7 +228,7 @@ def _rest(rig, tree):
     rig.data.bones.foreach_get("matrix_local", flat)
     mats = flat.reshape(-1, 4, 4).transpose(0, 2, 1)
     order = {b.name: i for i, b in enumerate(rig.data.bones)}
-    return mats[[order[n] for n in bn.bone_names(tree.parents)], :3, :3].astype(np.float64)
+    return mats[[order[n] for n in bones.bone_names(tree.parents)], :3, :3].astype(np.float64)
 
 
 def test_mesh_settings_come_from_the_tree_meta(tree):
@@ -245,7 +247,7 @@ def test_mesh_settings_come_from_the_tree_meta(tree):
 
 def test_timing_and_triangles_of_a_400_bone_tree():
     big = binary_tree(n_bones=400, frames=120)
-    rest = bn.rest_frames(big.parents, big.nodes3d[0])
+    rest = bones.rest_frames(big.parents, big.nodes3d[0])
     r_head, r_tail = bm.branch_radii(big.parents, big.radius)
     rows = []
     for kw in ({}, {"curliness": 0.5, "bark": "rough"}, {"curliness": 0.5, "bark": "rough", "sides": 12}):

@@ -10,12 +10,16 @@ import time
 import bpy
 import numpy as np
 import pytest
-
 from tree_from_video.core.errors import InputError
 from tree_from_video.operators import export, scene_build
-
-from trees import empty_scene  # noqa: F401  (autouse fixture)
-from trees import broad_tree, expected, pose_heads_dirs, pose_tails, tree_height
+from trees import (
+    broad_tree,
+    empty_scene,  # noqa: F401  (autouse fixture)
+    expected,
+    pose_heads_dirs,
+    pose_tails,
+    tree_height,
+)
 
 FRAMES = 60
 

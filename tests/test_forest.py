@@ -4,9 +4,8 @@ import warnings
 import numpy as np
 import pytest
 from scipy.spatial.distance import pdist
-
-from tree_from_video.core import envelopes, forest, growth, pgm
 from tree_from_video.core.errors import Cancelled, InputError
+from tree_from_video.core.generate import envelopes, forest, growth, species
 
 
 def test_scatter_area_spacing_bounds_determinism():
@@ -55,7 +54,7 @@ def test_scatter_on_mesh_area_weighted_and_spaced():
 
 
 def test_forest_trees_distinct_and_out_of_step():
-    model = pgm.load_species(pgm.species_library()["sparse"])
+    model = species.load_species(species.species_library()["sparse"])
     env = envelopes.topiary("circle", 5.0)
     slots = forest.forest_slots(forest.scatter_area(3, 20, 20, 4.0, seed=1), seed=9)
     assert len({s.seed for s in slots}) == 3 and len({round(s.time_offset_s, 6) for s in slots}) == 3
@@ -72,7 +71,7 @@ def test_forest_trees_distinct_and_out_of_step():
 
 
 def test_forest_cancel():
-    model = pgm.load_species(pgm.species_library()["broad"])
+    model = species.load_species(species.species_library()["broad"])
     env = envelopes.topiary("triangle", 5.0)
     slots = forest.forest_slots(np.zeros((5, 2)), seed=1)
     seen = []

@@ -10,14 +10,12 @@ import os
 import cv2
 import numpy as np
 import pytest
-from scipy.io import wavfile
-
-from tree_from_video import batch
-from tree_from_video.core import envelopes, pgm
-from tree_from_video.core.lift3d import envelope_from_meta
-from tree_from_video.core.tree3d import load_tree
-
 from samples import committed
+from scipy.io import wavfile
+from tree_from_video import batch
+from tree_from_video.core.envelope import envelope_from_meta
+from tree_from_video.core.generate import envelopes
+from tree_from_video.core.tree3d import load_tree
 
 VIDEO = os.path.join(committed("broad"), "video.mp4")
 OUTLINE = os.path.join(committed("broad"), "outline.json")
@@ -40,7 +38,7 @@ def _inside(poly, pts, tol):
 
 
 from test_exports import accessor, read_glb  # noqa: E402  (the same GLB container checks)
-
+from tree_from_video.core.generate import features, species
 
 # ----------------------------------------------------------------------------- mode (a): a species
 
@@ -211,7 +209,7 @@ def test_video_mode_fits_the_species_and_grows_in_its_envelope(tmp_path):
     assert code == 0, err
     assert sorted(os.listdir(out)) == ["generated.json", "overlay.png", "skeleton.npz", "species.json",
                                        "tree3d.npz", "tree_000", "tree_001"]
-    model = pgm.load_species(out / "species.json")
+    model = species.load_species(out / "species.json")
     assert model.n_frames == 60 and model.name == "video" and model.n_bifurcations > 5
     source = load_tree(out / "tree3d.npz")
     env = envelope_from_meta(source.meta)
@@ -221,7 +219,7 @@ def test_video_mode_fits_the_species_and_grows_in_its_envelope(tmp_path):
     assert H == pytest.approx(10.0, rel=0.05)                             # --height default 10 m
     first = source.meta["twigs"]["first_node"]                            # fitted without the copied twigs
     assert first < source.n_nodes
-    assert model.n_bifurcations == len(pgm.bifurcation_features(source.parents[:first], source.nodes3d[0, :first]).apex)
+    assert model.n_bifurcations == len(features.bifurcation_features(source.parents[:first], source.nodes3d[0, :first]).apex)
     S = source.nodes3d.astype(float)
     src_amp = np.percentile(np.linalg.norm(S - S[:1], axis=-1).max(0), 95) / H
     for t in index["trees"]:

@@ -7,11 +7,11 @@ import os
 import bpy
 import numpy as np
 import pytest
-
-from tree_from_video.core import envelopes, pgm
-
-from trees import empty_scene  # noqa: F401  (autouse fixture)
-from trees import broad_tree
+from tree_from_video.core.generate import envelopes, species
+from trees import (
+    broad_tree,
+    empty_scene,  # noqa: F401  (autouse fixture)
+)
 
 
 @pytest.fixture(autouse=True, scope="module")
@@ -156,7 +156,7 @@ def test_save_species_from_the_last_reconstruction(tmp_path):
     last_tree()["tree"] = tree
     path = tmp_path / "mine.json"
     assert bpy.ops.tree_video.save_species(filepath=str(path)) == {"FINISHED"}
-    model = pgm.load_species(path)
+    model = species.load_species(path)
     assert model.name == "mine" and model.n_bifurcations > 10
     assert json.loads(path.read_text())["format"] == "tree_from_video.species"
     p = bpy.context.scene.tree_video

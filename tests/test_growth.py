@@ -1,19 +1,24 @@
 """Generated trees (paper §5.3): inside Ω', feature statistics like the model, determinism, motion
 frequencies, wind and audio, Tree3D conventions, speed."""
-import math
 
 import cv2
 import numpy as np
 import pytest
-from scipy.io import wavfile
-
-from tree_from_video.core import bones, envelopes, growth, pgm, wind
-from tree_from_video.core.errors import Cancelled, InputError
-from tree_from_video.core.lift3d import envelope_from_meta
-from tree_from_video.core.skeleton2d import branching_level
-from tree_from_video.core.tree3d import pipe_radii
-
 from generation_data import source_model, source_tree
+from scipy.io import wavfile
+from tree_from_video.core import bones
+from tree_from_video.core.envelope import envelope_from_meta
+from tree_from_video.core.errors import Cancelled, InputError
+from tree_from_video.core.generate import (
+    dirichlet,
+    envelopes,
+    features,
+    growth,
+    species,
+    wind,
+)
+from tree_from_video.core.topology import branching_level
+from tree_from_video.core.tree3d import pipe_radii
 
 
 @pytest.fixture(scope="module")
@@ -55,7 +60,7 @@ def _features(model, env, seeds, **kw):
     A, L = [], []
     for seed in seeds:
         t = growth.grow_tree(model, env, growth.GrowParams(seed=seed, wind=0.0, n_frames=2, **kw))
-        f = pgm.bifurcation_features(t.parents, t.nodes3d[0])
+        f = features.bifurcation_features(t.parents, t.nodes3d[0])
         A.append(f.angles)
         L.append(f.lengths)
     return np.concatenate(A), np.concatenate(L)
@@ -80,10 +85,10 @@ def test_feature_distributions_match_the_model(model):
     assert dA.max() <= 0.045 and dL.max() <= 0.07
     assert np.all((rA > 0.75) & (rA < 1.4)) and np.all((rL > 0.75) & (rL < 1.4))
     # the Dirichlet log-likelihood of the generated features is higher under the own model
-    other = pgm.load_species(pgm.species_library()["sparse"])
+    other = species.load_species(species.species_library()["sparse"])
     mlA, mlL = np.log(np.maximum(A, 1e-12)).mean(0), np.log(np.maximum(L, 1e-12)).mean(0)
-    own = pgm.dirichlet_loglik(model.angles, mlA) + pgm.dirichlet_loglik(model.lengths, mlL)
-    alt = pgm.dirichlet_loglik(other.angles, mlA) + pgm.dirichlet_loglik(other.lengths, mlL)
+    own = dirichlet.dirichlet_loglik(model.angles, mlA) + dirichlet.dirichlet_loglik(model.lengths, mlL)
+    alt = dirichlet.dirichlet_loglik(other.angles, mlA) + dirichlet.dirichlet_loglik(other.lengths, mlL)
     print(f" mean log-likelihood per bifurcation: own model {own:.3f}, sparse model {alt:.3f}")
     assert own > alt
 
@@ -124,21 +129,21 @@ def test_tree3d_conventions(model):
 def test_dominant_frequencies_match_the_source(model):
     src = source_tree("broad")
     bin_hz = src.fps / src.n_frames
-    want = pgm.dominant_frequencies(src)
+    want = features.dominant_frequencies(src)
     env = envelope_from_meta(src.meta)
     for seed in range(3):
         t = growth.grow_tree(model, env, growth.GrowParams(seed=seed, n_frames=src.n_frames, fps=src.fps))
-        got = pgm.dominant_frequencies(t)
+        got = features.dominant_frequencies(t)
         print(f"seed {seed}: source peaks {want.round(3).tolist()} Hz, generated {got.round(3).tolist()} Hz "
               f"(bin {bin_hz:.3f} Hz)")
         assert np.all(np.abs(got - want) <= bin_hz + 1e-9)
-        _, es = pgm.energy_spectrum(src)
-        _, eg = pgm.energy_spectrum(t)
+        _, es = features.energy_spectrum(src)
+        _, eg = features.energy_spectrum(t)
         assert np.abs(es - eg).sum(1).max() < 0.25       # L1 distance of the mean energy spectra
 
 
 def _rotation_rms(tree):
-    rot = pgm.node_rotations(tree.parents, tree.nodes3d.astype(float))
+    rot = features.node_rotations(tree.parents, tree.nodes3d.astype(float))
     return float(np.sqrt(np.mean(rot[:, 1:] ** 2)))
 
 
@@ -204,7 +209,7 @@ def test_audio_drives_the_sway(model, tmp_path):
     env = envelopes.topiary("circle", 6.0)
     a = wind.audio_envelope(p, fps, F)
     t = growth.grow_tree(model, env, growth.GrowParams(seed=4, n_frames=F, fps=fps), audio=str(p))
-    rot = pgm.node_rotations(t.parents, t.nodes3d.astype(float))[:, 1:]
+    rot = features.node_rotations(t.parents, t.nodes3d.astype(float))[:, 1:]
     amp = np.sqrt(np.mean(rot ** 2, axis=(1, 2)))                   # instantaneous amplitude
     k = np.exp(-0.5 * (np.arange(-12, 13) / 6.0) ** 2)
     amp_s = np.convolve(np.pad(amp, 12, mode="edge"), k / k.sum(), mode="valid")
@@ -261,8 +266,7 @@ def test_generated_trees_carry_the_species_foliage():
     """A species fitted from a leafy reconstruction keeps its foliage (colour, cluster size, clusters
     per twig node); a generated tree gets clusters on its thin branches in that colour, and leaf
     density trades clusters for size (paper §5)."""
-    from tree_from_video.core import pgm
-    model = pgm.load_species(pgm.species_library()["broad"])
+    model = species.load_species(species.species_library()["broad"])
     assert model.leaves is not None
     env = envelopes.topiary("circle", 6.0)
     full = growth.grow_tree(model, env, growth.GrowParams(seed=4, n_frames=48))
@@ -284,8 +288,7 @@ def test_generated_trees_carry_the_species_foliage():
 def test_no_seed_leaves_a_bare_pole():
     """Every seed grows a real crown: a first fork that does not fit is resampled, not the end of
     the tree (before the fix, seeds 44 and 47 of 60 stopped at 9 nodes in a circle)."""
-    from tree_from_video.core import pgm
-    model = pgm.load_species(pgm.species_library()["broad"])
+    model = species.load_species(species.species_library()["broad"])
     env = envelopes.topiary("circle", 8.0)
     sizes = [growth.grow_tree(model, env, growth.GrowParams(seed=s, node_budget=120, n_frames=8, leaf_density=0)).n_nodes
              for s in range(60)]

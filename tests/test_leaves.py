@@ -2,9 +2,9 @@
 import cv2
 import numpy as np
 import pytest
-
-from tree_from_video.core import leaves, lift3d
-from tree_from_video.core.tracks import TrackParams, detect_corners
+from tree_from_video.core.detail import leaf_clusters, leaf_seeds
+from tree_from_video.core.reconstruct import lift
+from tree_from_video.core.reconstruct.tracks import TrackParams, detect_corners
 
 
 def _leaf_frame(seed=0, n=160, size=(360, 480)):
@@ -33,24 +33,24 @@ def test_dark_bright_split_matches_known_leaves():
     y = np.round(pts[:, 1]).astype(int)
     truth_dark = lab[y, x] == 1
     on_leaf = lab[y, x] > 0
-    dark = leaves.split_dark_bright(leaves.seed_intensity(img, pts))
+    dark = leaf_seeds.split_dark_bright(leaf_seeds.seed_intensity(img, pts))
     agree = (dark[on_leaf] == truth_dark[on_leaf]).mean()
     print(f"{on_leaf.sum()} seeds on leaves, split agrees with the truth on {100 * agree:.1f}%")
     assert on_leaf.sum() > 100 and agree >= 0.9
 
 
 def test_split_is_halves_by_the_median():
-    dark = leaves.split_dark_bright(np.array([10.0, 200, 50, 180, 90, 120]))
+    dark = leaf_seeds.split_dark_bright(np.array([10.0, 200, 50, 180, 90, 120]))
     assert dark.tolist() == [True, False, True, False, True, False]
 
 
 def test_seed_depth_goes_back_for_dark_and_front_for_bright(runs):
     res = runs["broad"]["traced"]
     sk = res.skeleton
-    L = lift3d.lift(sk, res.outline)
-    from tree_from_video.core.video import iter_frames
+    L = lift.lift(sk, res.outline)
+    from tree_from_video.core.reconstruct.video import iter_frames
     gray = cv2.cvtColor(next(iter_frames(res.info, res.start, res.start + 1)), cv2.COLOR_BGR2GRAY)
-    s = leaves.leaf_seeds(res.tracks.points[0], gray, sk.nodes2d[0], L.nodes, sk.nodes2d[0, 0].astype(float),
+    s = leaf_seeds.leaf_seeds(res.tracks.points[0], gray, sk.nodes2d[0], L.nodes, sk.nodes2d[0, 0].astype(float),
                           L.envelope)
     at_seed = s.pos3d.astype(float).copy()
     limit = L.envelope.depth_limit(at_seed)
@@ -82,7 +82,7 @@ def test_flutter_peaks_at_omega_and_scales_with_branch_speed():
     amps = []
     for swing in (0.05, 0.10):
         tree = _swaying_tree(swing)
-        y = leaves.flutter_angles(tree, np.array([2]), np.array([0.3]), hz, gain=4.0)[:, 0]
+        y = leaf_clusters.flutter_angles(tree, np.array([2]), np.array([0.3]), hz, gain=4.0)[:, 0]
         spec = np.abs(np.fft.rfft(y - y.mean()))
         freqs = np.fft.rfftfreq(len(y), 1 / tree.fps)
         assert abs(freqs[np.argmax(spec)] - hz) <= freqs[1] + 1e-9
@@ -100,7 +100,7 @@ def test_flutter_amplitude_by_hand():
     nodes[:, 1, 0] = 0.5 * np.arange(F) / fps                   # 0.5 m/s sideways (the test is on speed only)
     tree = Tree3D(np.array([-1, 0], np.int32), nodes, np.ones(2, np.float32), np.zeros(2, np.int32), fps)
     beta = np.array([0.7])
-    y = leaves.flutter_angles(tree, np.array([1]), beta, 2.0, 4.0)[:, 0]
+    y = leaf_clusters.flutter_angles(tree, np.array([1]), beta, 2.0, 4.0)[:, 0]
     t = np.arange(F) / fps
     np.testing.assert_allclose(y, 1.0 * np.sin(2 * np.pi * 2.0 * t + 0.7), atol=1e-5)
 
@@ -108,17 +108,18 @@ def test_flutter_amplitude_by_hand():
 @pytest.fixture(scope="module")
 def leafy(runs):
     """The broad sample's reconstruction with leaf clusters (density 1 and 0.5)."""
+    from samples import plain_settings
     from tree_from_video.core import pipeline
     res = runs["broad"]["traced"]
-    full = pipeline.build_3d(res, pipeline.Settings())
-    s = pipeline.Settings()
+    full = pipeline.build_3d(res, plain_settings())
+    s = plain_settings()
     s.leaves.density = 0.5
     half = pipeline.build_3d(res, s)
     return res, full, half
 
 
 def test_clusters_sit_in_the_crown_and_density_trades_polygons(leafy):
-    from tree_from_video.core.lift3d import envelope_from_meta
+    from tree_from_video.core.envelope import envelope_from_meta
     res, full, half = leafy
     a, b = full.leaves, half.leaves
     env = envelope_from_meta(full.meta)
@@ -132,7 +133,7 @@ def test_clusters_sit_in_the_crown_and_density_trades_polygons(leafy):
     assert 1.2 <= b.radius / a.radius <= 1.7                 # the template grows as ~1/√density
     assert 0.35 <= a.dark.mean() <= 0.65
     # nothing on the trunk below the crown: the lowest cluster is above the first fork's height
-    from tree_from_video.core.skeleton2d import children_lists
+    from tree_from_video.core.topology import children_lists
     kids = children_lists(full.parents)
     n = 0
     while len(kids[n]) == 1:
@@ -140,7 +141,7 @@ def test_clusters_sit_in_the_crown_and_density_trades_polygons(leafy):
     fork_z = float(full.nodes3d[0, n, 2])
     assert np.quantile(a.pos[:, 2], 0.02) >= 0.8 * fork_z
     # each cluster rides a bone: its distance to that bone's head stays fixed over the clip
-    c = leaves.leaf_centres(full)
+    c = leaf_clusters.leaf_centres(full)
     head = full.nodes3d[:, full.parents[a.node]]
     d = np.linalg.norm(c - head, axis=-1)
     assert np.abs(d - d[:1]).max() <= 1e-4 * full.meta["height_px"] * full.meta["metres_per_px"]
@@ -158,7 +159,7 @@ def test_leaves_round_trip_through_npz(leafy, tmp_path):
 
 
 def test_template_cards_stay_within_the_cluster_radius():
-    co, uv = leaves.cluster_template(16, 1.0, 0.55, seed=3)
+    co, uv = leaf_clusters.cluster_template(16, 1.0, 0.55, seed=3)
     assert co.shape == (64, 3) and uv.shape == (64, 2)
     assert np.linalg.norm(co, axis=1).max() <= 1.0 + 1e-9
 
@@ -170,7 +171,7 @@ def test_on_bark_by_hand():
     nodes = np.array([[0.0, 0.0], [0.0, 2.0], [1.0, 2.0]])
     radius = np.array([0.1, 0.1, 0.01])
     pts = np.array([[0.12, 1.0], [0.2, 1.0], [0.5, 2.005]])
-    assert leaves.on_bark(pts, parents, nodes, radius).tolist() == [True, False, False]
+    assert leaf_seeds.on_bark(pts, parents, nodes, radius).tolist() == [True, False, False]
 
 
 def test_leaf_flap_offsets_by_hand():
@@ -178,11 +179,11 @@ def test_leaf_flap_offsets_by_hand():
     sends the tip vertices to z = 1, so Δ = (0, −1, 1) there and 0 on the stem; the four
     non-negative key weights rebuild Δ·sin(ωt + φ)."""
     co = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float)
-    C, S, phase = leaves.leaf_flap_offsets(co, np.pi / 2, seed=5)
+    C, S, phase = leaf_clusters.leaf_flap_offsets(co, np.pi / 2, seed=5)
     delta = np.array([[0, 0, 0], [0, 0, 0], [0, -1, 1], [0, -1, 1]], float)
     np.testing.assert_allclose(C, delta * np.cos(phase[0]), atol=1e-12)
     np.testing.assert_allclose(S, delta * np.sin(phase[0]), atol=1e-12)
-    w = leaves.flap_weights(48, 24.0, 3.0)
+    w = leaf_clusters.flap_weights(48, 24.0, 3.0)
     assert (w >= 0).all() and (w <= 1).all()
     t = np.arange(48) / 24.0
     offset = (w[:, 0] - w[:, 1])[:, None, None] * C + (w[:, 2] - w[:, 3])[:, None, None] * S
@@ -193,7 +194,7 @@ def test_leaf_flap_offsets_by_hand():
 def test_leaf_colour_reads_the_tree_not_the_sky_around_a_small_tuft():
     """A 3×3 px green tuft on blue sky: the blurred colour at its centre is a green-blue mix,
     the colour over the tree's pixels is the tuft's own green."""
-    from tree_from_video.core.leaves import sample_colour
+    from tree_from_video.core.detail.leaf_seeds import sample_colour
     img = np.zeros((21, 21, 3), np.uint8)
     img[:] = (230, 160, 90)                                   # BGR sky blue
     img[9:12, 9:12] = (40, 150, 60)                           # BGR green
@@ -209,7 +210,7 @@ def test_leaf_colour_reads_the_tree_not_the_sky_around_a_small_tuft():
 def test_centre_on_pixels_by_hand():
     """A 7 px tuft centred at (30, 20): a corner on its edge moves to (30, 20) when the disk covers
     the whole tuft; a point with no tree pixels within the radius stays where it is."""
-    from tree_from_video.core.leaves import centre_on_pixels
+    from tree_from_video.core.detail.leaf_seeds import centre_on_pixels
     px = np.zeros((40, 60), bool)
     cv2.circle(px.view(np.uint8), (30, 20), 3, 1, -1)
     out = centre_on_pixels(np.array([[33.0, 21.0], [5.0, 5.0]]), px, 8)
@@ -221,14 +222,13 @@ def test_clusters_sit_on_the_true_tufts(runs):
     """Sparse sample (small tufts on bare twigs): leaf clusters near a true tuft are centred on it.
     Measured: median offset (-0.1, 0.5) px; (-2.3, -0.1) px while the leaves were placed from the
     trunk base as it was before the branch fit moved it onto its centre line."""
+    from groundtruth import true_labels
     from scipy.spatial import cKDTree
-
     from tree_from_video.core import pipeline
     from tree_from_video.core.tree3d import plane_to_image
     from tree_from_video.sample_videos import synth_tree as st
-
-    from groundtruth import true_labels
-    tree = pipeline.build_3d(runs["sparse"]["traced"], pipeline.Settings())
+    from samples import plain_settings
+    tree = pipeline.build_3d(runs["sparse"]["traced"], plain_settings())
     lab = true_labels("sparse")
     n, _, _, cent = cv2.connectedComponentsWithStats((lab == st.LABEL_LEAF).astype(np.uint8))
     c = plane_to_image(tree.leaves.pos.astype(float) / tree.meta["metres_per_px"], np.asarray(tree.meta["base_px"]))

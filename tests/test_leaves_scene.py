@@ -6,13 +6,15 @@ import os
 import bpy
 import numpy as np
 import pytest
-
-from tree_from_video.core import leaves as lv
+from samples import plain_settings
 from tree_from_video.core import pipeline
+from tree_from_video.core.detail import leaf_clusters
 from tree_from_video.operators import action_api, export, leaves_build, scene_build
-
-from trees import empty_scene  # noqa: F401  (autouse fixture)
-from trees import ROOT, tree_height
+from trees import (
+    ROOT,
+    empty_scene,  # noqa: F401  (autouse fixture)
+    tree_height,
+)
 
 FRAMES = 60
 
@@ -20,7 +22,7 @@ FRAMES = 60
 @pytest.fixture(scope="module")
 def tree():
     folder = os.path.join(ROOT, "sample_videos", "broad")
-    s = pipeline.Settings(frames=f"0:{FRAMES}")
+    s = plain_settings(frames=f"0:{FRAMES}")
     s.leaves.max_clusters = 150                    # keeps the export tests quick; placement is the same
     res = pipeline.run(os.path.join(folder, "video.mp4"), os.path.join(folder, "outline.json"), s)
     t = pipeline.build_3d(res, s, name="Leafy")
@@ -52,7 +54,7 @@ def test_leaf_bones_ride_their_branches_and_flutter(tree):
     for v in list(leaf_obj.data.vertices)[:: per // 2]:
         assert len(v.groups) == 1 and v.groups[0].weight == 1.0
         assert groups[v.groups[0].group] == names[v.index // per]
-    centres = lv.leaf_centres(tree)
+    centres = leaf_clusters.leaf_centres(tree)
     tol = 1e-3 * tree_height(tree)
     mw = np.array(rig.matrix_world)
     for frame in (1, 25, FRAMES):
@@ -66,7 +68,7 @@ def test_leaf_bones_ride_their_branches_and_flutter(tree):
     # every leaf's own flap: four shape keys whose keyed weights rebuild sin(ωt + φ_leaf)
     keys = leaf_obj.data.shape_keys
     assert [k.name for k in keys.key_blocks] == ["Basis", *leaves_build.FLAP_KEYS]
-    want = lv.flap_weights(tree.n_frames, tree.fps, L.leaf_hz)
+    want = leaf_clusters.flap_weights(tree.n_frames, tree.fps, L.leaf_hz)
     for i, name in enumerate(leaves_build.FLAP_KEYS):
         path = f'key_blocks["{name}"].value'
         fc = next(f for f in action_api.action_fcurves(keys.animation_data.action) if f.data_path == path)
@@ -74,7 +76,7 @@ def test_leaf_bones_ride_their_branches_and_flutter(tree):
         np.testing.assert_allclose(got, want[:, i], atol=1e-5)
     # with the bones switched off, a leaf tip moves by Δ sin(ωt + φ) about its stem
     leaf_obj.modifiers["Armature"].show_viewport = False
-    C, S, phase = lv.leaf_flap_offsets(lv.leaf_mesh(L)["co"], L.leaf_angle, L.seed)
+    C, S, phase = leaf_clusters.leaf_flap_offsets(leaf_clusters.leaf_mesh(L)["co"], L.leaf_angle, L.seed)
     tip = 2                                        # card 0's first tip vertex
     rest = np.array(keys.key_blocks["Basis"].data[tip].co)
     t = np.arange(tree.n_frames) / tree.fps
@@ -143,7 +145,7 @@ def test_leaves_are_in_the_gltf_fbx_and_usd_exports_animated(tree, tmp_path):
     weights = [c for c in anim["channels"] if c["target"]["path"] == "weights" and c["target"]["node"] == leaves_node]
     assert len(weights) == 1
     w = accessor(doc, binary, anim["samplers"][weights[0]["sampler"]]["output"]).reshape(FRAMES, 4)
-    np.testing.assert_allclose(w, lv.flap_weights(FRAMES, tree.fps, L.leaf_hz), atol=1e-4)
+    np.testing.assert_allclose(w, leaf_clusters.flap_weights(FRAMES, tree.fps, L.leaf_hz), atol=1e-4)
 
     # FBX: re-import keeps the leaf bones and the leaf mesh's groups
     fbx = tmp_path / "tree.fbx"

@@ -1,11 +1,9 @@
 """3D lift (paper §3 with the envelope/trunk fixes) against the synthetic trees' true 3D shape."""
 import numpy as np
 import pytest
-
-from tree_from_video.core import lift3d
-
 from conftest import BAR_VARIANTS
 from groundtruth import lift_scores
+from tree_from_video.core.reconstruct import lift
 
 BROAD = ("broad", "sparse", "hard", "grey", "gentle")
 
@@ -15,8 +13,8 @@ def lifts(runs):
     out = {}
     for v in BAR_VARIANTS + ("dense",):
         res = runs[v]["traced"]
-        params = lift3d.LiftParams(conifer=(v == "conifer"))
-        out[v] = lift3d.lift(res.skeleton, res.outline, params)
+        params = lift.LiftParams(conifer=(v == "conifer"))
+        out[v] = lift.lift(res.skeleton, res.outline, params)
     return out
 
 
@@ -53,7 +51,7 @@ def test_lift_beats_flat_truth_on_broad_crowns(lift_table):
 
 def _pushed_depths(sk, L, offset) -> np.ndarray:
     """Depths from pushing every push node's subtree by ``offset()`` (no Ω, no posterior)."""
-    from tree_from_video.core.skeleton2d import topological_order
+    from tree_from_video.core.topology import topological_order
     depth = np.zeros(len(sk.parents))
     for n in topological_order(sk.parents):
         p = sk.parents[n]
@@ -88,13 +86,13 @@ def test_conifer_leader_stays_straight(runs, lifts):
     L = lifts["conifer"]
     assert L.nodes[L.fixed, 1] == pytest.approx(0.0)
     sk = runs["conifer"]["traced"].skeleton
-    leader = lift3d.leader_nodes(sk.parents, L.nodes)
+    leader = lift.leader_nodes(sk.parents, L.nodes)
     assert (L.nodes[leader, 2].max() - L.nodes[:, 2].max()) > -0.05 * np.ptp(L.nodes[:, 2])
 
 
 def test_trunk_is_never_pushed(runs, lifts):
     for v in BROAD:
-        trunk = lift3d.trunk_nodes(runs[v]["traced"].skeleton.parents)
+        trunk = lift.trunk_nodes(runs[v]["traced"].skeleton.parents)
         assert np.all(lifts[v].nodes[trunk, 1] == 0.0)
 
 
@@ -105,17 +103,17 @@ def test_local_term_prefers_mu_on_a_hand_made_bifurcation():
     mu, sigma = np.radians(45), 0.3
     ys = np.linspace(-1.5, 1.5, 301)
     b = np.stack([np.full_like(ys, np.sin(np.radians(30))), ys, np.full_like(ys, np.cos(np.radians(30)))], 1)
-    alpha = lift3d.angle_between(b, np.array([[0.0, 0.0, 1.0]]))
-    best = ys[np.argmax(lift3d.local_term(alpha, mu, sigma))]
+    alpha = lift.angle_between(b, np.array([[0.0, 0.0, 1.0]]))
+    best = ys[np.argmax(lift.local_term(alpha, mu, sigma))]
     # hypot(0.5, y) = cos30 · tan45 → |y| = sqrt(0.75 − 0.25) = 0.7071
     assert abs(abs(best) - np.sqrt(0.5)) < 0.011
-    assert lift3d.local_term(np.array([mu]), mu, sigma)[0] == pytest.approx(1.0)
-    assert lift3d.local_term(np.array([mu + sigma]), mu, sigma)[0] == pytest.approx(np.exp(-0.5))
+    assert lift.local_term(np.array([mu]), mu, sigma)[0] == pytest.approx(1.0)
+    assert lift.local_term(np.array([mu + sigma]), mu, sigma)[0] == pytest.approx(np.exp(-0.5))
 
 
 def test_sampling_gives_variety_and_is_seeded(runs):
     res = runs["broad"]["traced"]
-    a = lift3d.lift(res.skeleton, res.outline, lift3d.LiftParams(sample=True, seed=1)).nodes
-    b = lift3d.lift(res.skeleton, res.outline, lift3d.LiftParams(sample=True, seed=1)).nodes
-    c = lift3d.lift(res.skeleton, res.outline, lift3d.LiftParams(sample=True, seed=2)).nodes
+    a = lift.lift(res.skeleton, res.outline, lift.LiftParams(sample=True, seed=1)).nodes
+    b = lift.lift(res.skeleton, res.outline, lift.LiftParams(sample=True, seed=1)).nodes
+    c = lift.lift(res.skeleton, res.outline, lift.LiftParams(sample=True, seed=2)).nodes
     assert np.array_equal(a, b) and not np.allclose(a, c)

@@ -1,12 +1,11 @@
 """3D motion (paper §4) against the synthetic trees' true motion, and the solvers' building blocks."""
 import numpy as np
 import pytest
-
-from tree_from_video.core import lift3d, motion
-from tree_from_video.core.tree3d import image_to_plane
-
 from conftest import BAR_VARIANTS
 from motion_metrics import motion_scores
+from tree_from_video.core import rotations
+from tree_from_video.core.reconstruct import lift, motion
+from tree_from_video.core.tree3d import image_to_plane
 
 
 @pytest.fixture(scope="session")
@@ -16,7 +15,7 @@ def solved(runs):
     for v in BAR_VARIANTS + ("dense",):
         res = runs[v]["traced"]
         sk = res.skeleton
-        L = lift3d.lift(sk, res.outline, lift3d.LiftParams(conifer=(v == "conifer")))
+        L = lift.lift(sk, res.outline, lift.LiftParams(conifer=(v == "conifer")))
         base = sk.nodes2d[0, 0].astype(np.float64)
         tgt = image_to_plane(sk.nodes2d.astype(np.float64), base)[..., [0, 2]]
         entry = {}
@@ -86,7 +85,7 @@ def test_accumulated_rotation_never_exceeds_delta(solved):
 # --- building blocks, by hand ---------------------------------------------------------------
 
 def test_rodrigues_quarter_turn():
-    R = motion.rodrigues(np.array([[0.0, 0.0, np.pi / 2]]))[0]
+    R = rotations.rodrigues(np.array([[0.0, 0.0, np.pi / 2]]))[0]
     assert R @ np.array([1.0, 0, 0]) == pytest.approx([0, 1, 0], abs=1e-12)
 
 
@@ -124,7 +123,7 @@ def test_chain_targets_follow_their_ends_by_arc_length():
 def _objective(X, i, p, members, target, alpha1, sigma_shape, prm, height, A):
     """The probabilistic solver's negative log posterior for node i's rotations ω (K, 3)."""
     def f(omegas):
-        R = motion.rodrigues(omegas)
+        R = rotations.rodrigues(omegas)
         v = X[members] - X[p]
         moved = X[p] + np.einsum("kij,mj->kmi", R, v)                  # (K, M, 3)
         track = (((moved[..., [0, 2]] - target[members]) ** 2).sum((-1, -2))) / (2 * (prm.sigma_track * height) ** 2)

@@ -5,13 +5,11 @@ import os
 
 import numpy as np
 import pytest
-from scipy.special import digamma
-
-from tree_from_video.core import pgm
-from tree_from_video.core.errors import InputError
-from tree_from_video.core.tree3d import Tree3D
-
 from generation_data import source_model, source_tree
+from scipy.special import digamma
+from tree_from_video.core.errors import InputError
+from tree_from_video.core.generate import dirichlet, features, species
+from tree_from_video.core.tree3d import Tree3D
 
 PARAMS = {
     "moderate": [2.0, 5.0, 3.0],
@@ -27,7 +25,7 @@ PARAMS = {
 def test_dirichlet_recovers_parameters(name):
     alpha = np.array(PARAMS[name])
     X = np.random.default_rng(7).dirichlet(alpha, 2000)
-    fit = pgm.fit_dirichlet(X)
+    fit = dirichlet.fit_dirichlet(X)
     err = np.abs(fit.alpha / alpha - 1)
     print(f"{name}: alpha {np.round(fit.alpha, 3)} max rel err {err.max():.3f} in {fit.iterations} it")
     assert fit.fallback is None
@@ -42,20 +40,20 @@ def test_fixed_point_alone_increases_likelihood():
     Z = np.random.default_rng(3).dirichlet(alpha_true, 500)
     ml = np.log(Z).mean(0)
     a = np.ones(3)
-    lls = [pgm.dirichlet_loglik(a, ml)]
+    lls = [dirichlet.dirichlet_loglik(a, ml)]
     for _ in range(10):
-        a = pgm.inv_digamma(digamma(a.sum()) + ml)
-        lls.append(pgm.dirichlet_loglik(a, ml))
+        a = dirichlet.inv_digamma(digamma(a.sum()) + ml)
+        lls.append(dirichlet.dirichlet_loglik(a, ml))
     assert np.all(np.diff(lls) > 0)
-    assert np.abs(pgm.fit_dirichlet(Z).alpha / alpha_true - 1).max() < 0.15
+    assert np.abs(dirichlet.fit_dirichlet(Z).alpha / alpha_true - 1).max() < 0.15
 
 
 def test_inverse_digamma_and_loglik_hand_cases():
     y = np.linspace(-8, 6, 57)
-    assert np.max(np.abs(digamma(pgm.inv_digamma(y)) - y)) < 1e-10
+    assert np.max(np.abs(digamma(dirichlet.inv_digamma(y)) - y)) < 1e-10
     # Eq. 11: D(z | 1, 1, 1) = Γ(3) = 2 everywhere; D(z | 2, 1) = 2 z1 → z = (0.25, 0.75): log 0.5
-    assert pgm.dirichlet_loglik([1, 1, 1], np.log([0.2, 0.3, 0.5])) == pytest.approx(math.log(2))
-    assert pgm.dirichlet_loglik([2, 1], np.log([0.25, 0.75])) == pytest.approx(math.log(0.5))
+    assert dirichlet.dirichlet_loglik([1, 1, 1], np.log([0.2, 0.3, 0.5])) == pytest.approx(math.log(2))
+    assert dirichlet.dirichlet_loglik([2, 1], np.log([0.25, 0.75])) == pytest.approx(math.log(0.5))
 
 
 @pytest.mark.parametrize("case", ["empty", "one", "fewer than K", "zeros", "identical", "nan rows", "negative"])
@@ -68,7 +66,7 @@ def test_dirichlet_degenerate_data_never_nan(case):
          "identical": np.tile([0.2, 0.3, 0.5], (40, 1)),
          "nan rows": np.vstack([rng.dirichlet([2, 3, 4], 50), [[np.nan, 0.5, 0.5]]]),
          "negative": np.vstack([rng.dirichlet([2, 3, 4], 50), [[-0.1, 0.6, 0.5]]])}[case]
-    fit = pgm.fit_dirichlet(X)
+    fit = dirichlet.fit_dirichlet(X)
     assert np.all(np.isfinite(fit.alpha)) and np.all(fit.alpha > 0)
     assert np.all(np.isfinite(fit.loglik))
     assert fit.fallback is not None or case == "nan rows"
@@ -91,7 +89,7 @@ def _y_tree(mirror=False):
 @pytest.mark.parametrize("mirror", [False, True])
 def test_bifurcation_features_hand_case(mirror):
     parents, pos = _y_tree(mirror)
-    f = pgm.bifurcation_features(parents, pos)
+    f = features.bifurcation_features(parents, pos)
     assert list(f.apex) == [1] and list(f.leaves[0]) == [3, 2]           # continuation first
     assert np.allclose(f.angles[0], np.array([170, 60, 130]) / 360)       # θ / 2π
     assert np.allclose(f.lengths[0], np.array([1.0, 0.8, 0.4]) / 2.2)
@@ -105,15 +103,15 @@ def test_spectral_features_hand_case():
     t = np.arange(F) / fps
     rot = np.zeros((F, 2, 3))
     rot[:, 1, 0] = A * np.sin(2 * np.pi * 1.5 * t)            # bin 15 (1.5 Hz)
-    sf = pgm.spectral_features(np.array([-1, 0]), rot, fps)[0]
-    assert pgm.n_kept_bins(F) == 20 and len(sf.freqs_hz) == 20
+    sf = features.spectral_features(np.array([-1, 0]), rot, fps)[0]
+    assert features.n_kept_bins(F) == 20 and len(sf.freqs_hz) == 20
     assert sf.freqs_hz[np.argmax(sf.energy[0])] == pytest.approx(1.5)
     assert sf.energy[0].max() == pytest.approx(1.0)
     assert sf.rms[0] == pytest.approx(A / math.sqrt(2), rel=1e-9)
     assert sf.u[0, 14] == pytest.approx(1.0)                  # aligned: all of it real positive
-    z = pgm.shift_tuple(sf.u)
+    z = features.shift_tuple(sf.u)
     assert np.allclose(z.sum(1), 1) and np.all(z >= 0)
-    assert np.allclose(pgm.unshift_tuple(z), sf.u)
+    assert np.allclose(features.unshift_tuple(z), sf.u)
 
 
 def test_node_rotations_recover_a_known_bend():
@@ -122,25 +120,25 @@ def test_node_rotations_recover_a_known_bend():
     rest = np.array([[0, 0, 0], [0, 0, 1.0], [0, 0, 2.0]])
     moved = rest.copy()
     moved[2] = [0, -math.sin(0.1), 1 + math.cos(0.1)]
-    rot = pgm.node_rotations(parents, np.stack([rest, moved]))
+    rot = features.node_rotations(parents, np.stack([rest, moved]))
     assert np.allclose(rot[1, 2], [0.1, 0, 0], atol=1e-9) and np.allclose(rot[1, 1], 0, atol=1e-12)
 
 
 def test_fit_species_on_reconstruction_and_json_round_trip(tmp_path):
     tree = source_tree("broad")
     m = source_model("broad")
-    f = pgm.bifurcation_features(tree.parents, tree.nodes3d[0])
+    f = features.bifurcation_features(tree.parents, tree.nodes3d[0])
     print(f"broad: {len(f.apex)} bifurcations, angle α {m.angles.round(2)}, length α {m.lengths.round(2)}, "
           f"peaks {[p.tolist() for p in (mm.peaks_hz() for mm in m.motion)]}")
     assert m.n_bifurcations == len(f.apex) >= 20
     assert np.abs(m.angles / m.angles.sum() - f.angles.mean(0)).max() < 0.03
-    assert len(m.motion) == 3 and all(len(a.energy) == pgm.n_kept_bins(tree.n_frames) for a in m.motion)
+    assert len(m.motion) == 3 and all(len(a.energy) == features.n_kept_bins(tree.n_frames) for a in m.motion)
     assert not m.fallbacks
     path = tmp_path / "broad.json"
-    pgm.save_species(path, m)
+    species.save_species(path, m)
     text = path.read_text()
     assert '"format": "tree_from_video.species"' in text and '"version": 1' in text
-    back = pgm.load_species(path)
+    back = species.load_species(path)
     assert back.to_json() == m.to_json()
     assert not [p for p in os.listdir(tmp_path) if p.startswith(".tmp")]
 
@@ -148,7 +146,7 @@ def test_fit_species_on_reconstruction_and_json_round_trip(tmp_path):
 def test_load_species_errors(tmp_path):
     good = source_model("broad").to_json()
     cases = {"missing": None, "not json": "{nope", "foreign": json.dumps({"format": "x"}),
-             "newer": json.dumps({**good, "version": pgm.VERSION + 1}),
+             "newer": json.dumps({**good, "version": species.VERSION + 1}),
              "damaged": json.dumps({**good, "shape": {**good["shape"], "angle_alpha": [1, -2, 3]}}),
              "incomplete": json.dumps({k: v for k, v in good.items() if k != "motion"})}
     for name, content in cases.items():
@@ -156,16 +154,16 @@ def test_load_species_errors(tmp_path):
         if content is not None:
             path.write_text(content)
         with pytest.raises(InputError) as exc:
-            pgm.load_species(path)
+            species.load_species(path)
         print(name, "→", exc.value)
         assert str(path) in str(exc.value)
 
 
 def test_species_library_ships_the_samples():
-    lib = pgm.species_library()
+    lib = species.species_library()
     assert {"broad", "sparse", "conifer"} <= set(lib)
     for name, path in lib.items():
-        m = pgm.load_species(path)
+        m = species.load_species(path)
         assert m.name == name and m.conifer == (name == "conifer")
         assert 0 < m.trunk_frac < 1 and m.n_bifurcations >= 10
 
@@ -174,4 +172,4 @@ def test_fit_species_rejects_unusable_trees():
     chain = Tree3D(np.array([-1, 0, 1]), np.zeros((20, 3, 3), np.float32) + [[0, 0, 0], [0, 0, 1], [0, 0, 2]],
                    np.ones(3, np.float32), np.zeros(3, np.int32), 24.0)
     with pytest.raises(InputError, match="no bifurcation"):
-        pgm.fit_species(chain, "chain")
+        species.fit_species(chain, "chain")

@@ -5,13 +5,10 @@ import time
 import bpy
 import numpy as np
 import pytest
-
 import tree_from_video
-from tree_from_video.core import pipeline
+from samples import committed, plain_settings
 from tree_from_video.core.job import Job
 from tree_from_video.operators import reconstruct_op
-
-from samples import committed
 from trees import addon  # noqa: F401  (autouse fixture: the add-on registered per test)
 
 VIDEO = os.path.join(committed("broad"), "video.mp4")
@@ -89,7 +86,7 @@ def test_mask_outline_is_converted_to_pixels(addon):
 
 @pytest.mark.parametrize("stage", ["tracking", "hierarchy", "skeleton", "lift", "motion"])
 def test_cancel_at_every_stage_stops_within_a_second(stage):
-    s = pipeline.Settings(frames="0:60")
+    s = plain_settings(frames="0:60")
     job = Job(reconstruct_op.make_work(VIDEO, OUTLINE, s, "T")).start()
     t0 = time.monotonic()
     while job.stage != stage and not job.done and time.monotonic() - t0 < 120:
@@ -110,7 +107,7 @@ def test_internal_errors_become_one_line_with_details():
 
 
 def test_unregister_stops_running_jobs():
-    job = Job(reconstruct_op.make_work(VIDEO, OUTLINE, pipeline.Settings(), "T")).start()
+    job = Job(reconstruct_op.make_work(VIDEO, OUTLINE, plain_settings(), "T")).start()
     reconstruct_op._RUNNING.add(job)
     time.sleep(0.2)
     reconstruct_op.cancel_all(timeout=2.0)
@@ -118,8 +115,8 @@ def test_unregister_stops_running_jobs():
 
 
 def test_preview_keeps_tracks_and_skeleton_for_the_clip_editor(addon):
-    from tree_from_video.operators import clip_overlay
     from samples import load_truth
+    from tree_from_video.operators import clip_overlay
     addon.video_path, addon.outline_path = VIDEO, OUTLINE
     addon.use_frame_range, addon.frame_start, addon.frame_end = True, 10, 40
     before = _ids()

@@ -1,6 +1,5 @@
 """The add-on registers, unregisters and registers again (bpy wheel, and inside real Blender)."""
 import bpy
-
 import tree_from_video
 
 

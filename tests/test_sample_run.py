@@ -7,11 +7,10 @@ import os
 
 import numpy as np
 import pytest
-
-from tree_from_video.core import model, pipeline
-
 from groundtruth import score
-from samples import committed, load_truth
+from samples import committed, load_truth, plain_settings
+from tree_from_video.core import pipeline
+from tree_from_video.core.reconstruct import skeleton_io
 
 
 @pytest.fixture(scope="module")
@@ -40,11 +39,11 @@ def test_mask_outline_gives_the_same_tree(broad):
 def test_skeleton_file_round_trip(broad, tmp_path):
     res, _ = broad
     path = tmp_path / "skeleton.npz"
-    model.save_skeleton(path, res.skeleton, {"video": "x.mp4"})
+    skeleton_io.save_skeleton(path, res.skeleton, {"video": "x.mp4"})
     with np.load(path, allow_pickle=False) as z:
         assert set(z.files) >= {"parents", "nodes2d", "level", "fps", "meta_json"}
         assert json.loads(str(z["meta_json"]))["video"] == "x.mp4"
-    back, meta = model.load_skeleton(path)
+    back, meta = skeleton_io.load_skeleton(path)
     assert np.array_equal(back.parents, res.skeleton.parents)
     assert np.array_equal(back.nodes2d, res.skeleton.nodes2d)
     assert np.array_equal(back.level, res.skeleton.level)
@@ -57,7 +56,7 @@ def test_progress_reaches_the_end_and_cancel_stops(broad):
     folder = committed("broad")
     seen = []
     pipeline.run(os.path.join(folder, "video.mp4"), os.path.join(folder, "outline.json"),
-                 pipeline.Settings(frames="0:30"), lambda stage, f: seen.append((stage, f)))
+                 plain_settings(frames="0:30"), lambda stage, f: seen.append((stage, f)))
     assert seen[-1][1] == pytest.approx(1.0)
     assert {"tracking", "hierarchy", "skeleton"} <= {s for s, _ in seen}
     fractions = [f for _, f in seen]
@@ -67,13 +66,13 @@ def test_progress_reaches_the_end_and_cancel_stops(broad):
         return stage != "tracking"
     with pytest.raises(Cancelled):
         pipeline.run(os.path.join(folder, "video.mp4"), os.path.join(folder, "outline.json"),
-                     pipeline.Settings(frames="0:30"), cancel_in_tracking)
+                     plain_settings(frames="0:30"), cancel_in_tracking)
 
 
 def test_cache_skips_tracking_and_gives_the_same_skeleton(tmp_path):
     import time
     folder = committed("broad")
-    s = pipeline.Settings(frames="0:60", cache_dir=str(tmp_path / "cache"))
+    s = plain_settings(frames="0:60", cache_dir=str(tmp_path / "cache"))
     t0 = time.perf_counter()
     first = pipeline.run(os.path.join(folder, "video.mp4"), os.path.join(folder, "outline.json"), s)
     t_first = time.perf_counter() - t0
@@ -87,7 +86,7 @@ def test_cache_skips_tracking_and_gives_the_same_skeleton(tmp_path):
     assert np.array_equal(first.skeleton.nodes2d, again.skeleton.nodes2d)
     print(f"first run {t_first:.2f} s, cached {t_again:.2f} s")
     # another frame range is another key; a corrupt file is ignored and rebuilt
-    s2 = pipeline.Settings(frames="0:50", cache_dir=s.cache_dir)
+    s2 = plain_settings(frames="0:50", cache_dir=s.cache_dir)
     pipeline.run(os.path.join(folder, "video.mp4"), os.path.join(folder, "outline.json"), s2)
     assert len(list((tmp_path / "cache").iterdir())) == 2
     for f in (tmp_path / "cache").iterdir():

@@ -5,14 +5,19 @@ import math
 import bpy
 import numpy as np
 import pytest
-
-from tree_from_video.core import bones as bn
+from tree_from_video.core import bones, rotations
 from tree_from_video.core.errors import InputError
 from tree_from_video.core.tree3d import Tree3D
 from tree_from_video.operators import action_api, scene_build
-
-from trees import empty_scene  # noqa: F401  (autouse fixture)
-from trees import assert_closed_tubes, binary_tree, broad_tree, expected, pose_tails, tree_height
+from trees import (
+    assert_closed_tubes,
+    binary_tree,
+    broad_tree,
+    empty_scene,  # noqa: F401  (autouse fixture)
+    expected,
+    pose_tails,
+    tree_height,
+)
 
 S2 = math.sqrt(0.5)
 
@@ -39,19 +44,19 @@ def test_two_bone_chain_bent_90_degrees_by_hand():
     parents, nodes = _chain([[[0, 0, 0], [0, 0, 1], [0, 0, 2]],
                              [[0, 0, 0], [0, 0, 1], [1, 0, 1]],
                              [[0, 0, 0], [1, 0, 0], [2, 0, 0]]])
-    assert bn.bone_names(parents) == ["B001", "B002"]
-    assert bn.bone_parents(parents).tolist() == [-1, 0]
+    assert bones.bone_names(parents) == ["B001", "B002"]
+    assert bones.bone_parents(parents).tolist() == [-1, 0]
     # Blender's roll-0 rest matrix of a bone pointing +z: X = +x, Y = +z, Z = -y
     up = np.array([[1.0, 0, 0], [0, 0, -1], [0, 1, 0]])
     rest = np.stack([up, up])
-    np.testing.assert_allclose(bn.rest_frames(parents, nodes[0]), rest, atol=1e-12)
+    np.testing.assert_allclose(bones.rest_frames(parents, nodes[0]), rest, atol=1e-12)
 
-    world = bn.world_rotations(parents, nodes)
+    world = bones.world_rotations(parents, nodes)
     np.testing.assert_allclose(world[0], [[1, 0, 0, 0], [1, 0, 0, 0]], atol=1e-12)
     # frame 1: +z → +x is +90° about world +y
     np.testing.assert_allclose(world[1], [[1, 0, 0, 0], [S2, 0, S2, 0]], atol=1e-12)
 
-    local = bn.local_rotations(parents, nodes, rest)
+    local = bones.local_rotations(parents, nodes, rest)
     assert local.shape == (3, 2, 4)
     np.testing.assert_allclose(local[0], [[1, 0, 0, 0], [1, 0, 0, 0]], atol=1e-12)
     # world +y is the bone's -Z: +90° about -Z in bone space
@@ -59,16 +64,16 @@ def test_two_bone_chain_bent_90_degrees_by_hand():
     # frame 2: the lower bone turns, the upper one inherits it and stays straight relative to it
     np.testing.assert_allclose(local[2], [[S2, 0, 0, -S2], [1, 0, 0, 0]], atol=1e-12)
 
-    np.testing.assert_allclose(bn.pose_tails(parents, nodes[0], rest, local), nodes, atol=1e-12)
+    np.testing.assert_allclose(bones.pose_tails(parents, nodes[0], rest, local), nodes, atol=1e-12)
 
 
 def test_local_rotations_reproduce_positions_through_forward_kinematics():
     tree = binary_tree(n_bones=31, frames=40, seed=3)
-    rest = bn.rest_frames(tree.parents, tree.nodes3d[0])
-    local = bn.local_rotations(tree.parents, tree.nodes3d, rest)
+    rest = bones.rest_frames(tree.parents, tree.nodes3d[0])
+    local = bones.local_rotations(tree.parents, tree.nodes3d, rest)
     assert local.shape == (40, 31, 4)
     np.testing.assert_allclose(np.linalg.norm(local, axis=-1), 1.0, atol=1e-12)
-    fk = bn.pose_tails(tree.parents, tree.nodes3d[0], rest, local)
+    fk = bones.pose_tails(tree.parents, tree.nodes3d[0], rest, local)
     assert np.abs(fk - tree.nodes3d).max() < 1e-5 * tree_height(tree)       # float32 input
 
 
@@ -79,11 +84,11 @@ def test_quaternions_are_sign_continuous_and_swings_untwisted():
     q = np.cumsum(q * 0.1, axis=0)                          # a smooth path ...
     q /= np.linalg.norm(q, axis=-1, keepdims=True)
     flipped = q * rng.choice([-1.0, 1.0], size=(30, 5, 1))  # ... with random sign flips
-    c = bn.make_continuous(flipped)
+    c = rotations.make_continuous(flipped)
     assert (np.sum(c[1:] * c[:-1], axis=-1) >= 0).all()
     np.testing.assert_allclose(np.abs(np.sum(c * q, axis=-1)), 1.0, atol=1e-12)   # same rotations
     # the swing has no twist: its axis is perpendicular to both directions
-    s = bn.swing(np.array([0.0, 0, 1]), np.array([[1.0, 0, 0], [0, 0, -1]]))
+    s = rotations.swing(np.array([0.0, 0, 1]), np.array([[1.0, 0, 0], [0, 0, -1]]))
     np.testing.assert_allclose(s[0], [S2, 0, S2, 0], atol=1e-12)
     assert abs(s[1, 0]) < 1e-12 and abs(s[1, 3]) < 1e-12                 # 180° about an axis ⟂ z
 
@@ -93,17 +98,17 @@ def test_matrix_quaternion_round_trip():
     q = rng.normal(size=(500, 4))
     q /= np.linalg.norm(q, axis=1, keepdims=True)
     q[q[:, 0] < 0] *= -1
-    np.testing.assert_allclose(bn.matrix_to_quat(bn.quat_to_matrix(q)), q, atol=1e-9)
+    np.testing.assert_allclose(rotations.matrix_to_quat(rotations.quat_to_matrix(q)), q, atol=1e-9)
 
 
 def test_degenerate_trees_are_input_errors():
     with pytest.raises(InputError, match="zero length"):
-        bn.local_rotations(np.array([-1, 0]), np.zeros((2, 2, 3)), np.stack([np.eye(3)]))
+        bones.local_rotations(np.array([-1, 0]), np.zeros((2, 2, 3)), np.stack([np.eye(3)]))
     nodes = np.zeros((2, 2, 3))
     nodes[:, 1, 2] = 1
     nodes[1, 1, 0] = np.nan
     with pytest.raises(InputError, match="non-finite"):
-        bn.world_rotations(np.array([-1, 0]), nodes)
+        bones.world_rotations(np.array([-1, 0]), nodes)
 
 
 # ----------------------------------------------------------------------------- the built scene
@@ -303,15 +308,16 @@ def test_solver_output_builds_and_poses_exactly():
     and channel, and the evaluated pose equals the solver's nodes within 1e-4 of the height."""
     import os
 
+    from samples import plain_settings
     from tree_from_video.core import pipeline
     from trees import ROOT
     folder = os.path.join(ROOT, "sample_videos", "broad")
     res = pipeline.run(os.path.join(folder, "video.mp4"), os.path.join(folder, "outline.json"),
-                       pipeline.Settings(frames="0:30"))
-    tree = pipeline.build_3d(res, pipeline.Settings(frames="0:30"), name="Solved")
+                       plain_settings(frames="0:30"))
+    tree = pipeline.build_3d(res, plain_settings(frames="0:30"), name="Solved")
     built = scene_build.build_tree(bpy.context, tree, "Solved", leaves=False)   # leaves: test_leaves_scene
     rig = built["armature"]
-    names = bn.bone_names(tree.parents)
+    names = bones.bone_names(tree.parents)
     assert len(rig.data.bones) == len(res.skeleton.edges()) == tree.n_nodes - 1
     curves = list(action_api.action_fcurves(built["action"]))
     assert len(curves) == 4 * len(names)

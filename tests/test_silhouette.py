@@ -2,18 +2,15 @@
 front view, the video's framing) overlaps the true tree mask (branches + leaves of the synthetic
 frame) with IoU ≥ the bar below, on every generated sample."""
 import math
-import os
 
 import bpy
 import cv2
 import numpy as np
 import pytest
-
+from groundtruth import true_labels
 from tree_from_video.core import pipeline
 from tree_from_video.operators import scene_build
 from tree_from_video.sample_videos import synth_tree
-
-from groundtruth import true_labels
 from trees import empty_scene  # noqa: F401  (autouse fixture)
 
 #: measured (traced skeleton, the default look: twigs 2, curliness 0.3, rough bark, leaves, branch
@@ -62,8 +59,7 @@ def true_mask(variant: str) -> np.ndarray:
 @pytest.mark.parametrize("variant", sorted(BARS))
 def test_rendered_silhouette_overlaps_the_video_tree(runs, variant, tmp_path):
     res = runs[variant]["traced"]
-    s = pipeline.Settings()
-    s.twigs.depth, s.curliness, s.bark = 2, 0.3, "rough"          # what the panel and the CLI give by default
+    s = pipeline.Settings()          # the product's defaults: twigs 2, curliness 0.3, rough bark
     tree = pipeline.build_3d(res, s, name="Sil")
     built = scene_build.build_tree(bpy.context, tree, "Sil")
     sil = render_silhouette(tree, str(tmp_path / "sil.png"))

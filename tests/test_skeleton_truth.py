@@ -7,13 +7,10 @@ within 0.1 Hz.
 """
 import numpy as np
 import pytest
-from scipy.spatial import cKDTree
-
-from tree_from_video.core.skeleton2d import children_lists
-
-from groundtruth import score
-
 from conftest import ALL_VARIANTS, BAR_VARIANTS
+from groundtruth import score
+from scipy.spatial import cKDTree
+from tree_from_video.core.topology import children_lists
 
 
 def test_print_table(scores, capsys):
@@ -124,7 +121,7 @@ def test_fallback_without_any_bark_evidence(runs):
     skeleton: the hierarchy's clusters joined to a straight trunk, with a warning."""
     import dataclasses
 
-    from tree_from_video.core.trace import traced_skeleton
+    from tree_from_video.core.reconstruct.trace import traced_skeleton
 
     res = runs["dense"]["traced"]
     no_bark = dataclasses.replace(res.maps, dark=np.zeros_like(res.maps.dark))

@@ -5,13 +5,11 @@ import math
 
 import numpy as np
 import pytest
-
-from tree_from_video.core import bones as bn
-from tree_from_video.core import twigs as tw
+from tree_from_video.core import bones, rotations
+from tree_from_video.core.detail import twigs as tw
+from tree_from_video.core.envelope import Envelope, envelope_from_meta, envelope_to_meta
 from tree_from_video.core.errors import InputError
-from tree_from_video.core.lift3d import Envelope, envelope_from_meta, envelope_to_meta
 from tree_from_video.core.tree3d import Tree3D
-
 from trees import binary_tree, broad_tree
 
 
@@ -76,7 +74,7 @@ def test_depth_zero_is_the_same_tree_and_counts_follow_depth():
         assert out.meta["twigs"]["per_generation"] == [T * 2 ** g for g in range(1, d + 1)]
         np.testing.assert_array_equal(out.parents[:tree.n_nodes], tree.parents)        # originals kept
         np.testing.assert_array_equal(out.nodes3d[:, :tree.n_nodes], tree.nodes3d)
-        assert bn.bone_names(out.parents)[:tree.n_nodes - 1] == bn.bone_names(tree.parents)
+        assert bones.bone_names(out.parents)[:tree.n_nodes - 1] == bones.bone_names(tree.parents)
         assert (out.parents[tree.n_nodes:] < np.arange(tree.n_nodes, out.n_nodes)).all()   # parents first
     capped = tw.add_twigs(tree, tw.TwigParams(depth=3, max_nodes=50))
     assert capped.n_nodes - tree.n_nodes == 50
@@ -107,7 +105,7 @@ def _twig_angles_and_ratios(tree, out):
     """θ (angle to the parent direction) and ρ (length ÷ parent length) of every twig, measured
     the way the templates are: parent = the tip bone's direction and tip chain's chord for
     generation 1, the parent twig bone for later generations."""
-    from tree_from_video.core.skeleton2d import chains
+    from tree_from_video.core.topology import chains
     N = tree.n_nodes
     rest = out.nodes3d[0].astype(np.float64)
     par = out.parents.astype(int)
@@ -150,7 +148,7 @@ def test_angles_and_length_ratios_follow_the_source_forks(broad):
 def test_no_zero_length_bones_and_thinner_twigs(broad):
     out = tw.add_twigs(_with_envelope(broad, 0.3), tw.TwigParams(depth=3, seed=2))
     N = broad.n_nodes
-    bn.check_positions(out.parents, out.nodes3d)                                 # raises on a zero-length bone
+    bones.check_positions(out.parents, out.nodes3d)                                 # raises on a zero-length bone
     length = np.linalg.norm(out.nodes3d[:, N:] - out.nodes3d[:, out.parents[N:]], axis=-1)
     height = float(np.ptp(broad.nodes3d[0], axis=0).max())
     assert length.min() >= 0.99 * 1e-3 * height
@@ -168,13 +166,13 @@ def test_no_zero_length_bones_and_thinner_twigs(broad):
 def test_twig_motion_follows_the_parent_bone_with_lag_and_attenuation(broad, lag, att):
     out = tw.add_twigs(broad, tw.TwigParams(depth=2, seed=0, lag_frames=lag, attenuation=att))
     N = broad.n_nodes
-    q = bn.world_rotations(broad.parents, broad.nodes3d)                         # the driver bones
-    bone_of_node = {int(c): i for i, c in enumerate(bn.bone_edges(broad.parents)[:, 1])}
+    q = bones.world_rotations(broad.parents, broad.nodes3d)                         # the driver bones
+    bone_of_node = {int(c): i for i, c in enumerate(bones.bone_edges(broad.parents)[:, 1])}
     twig = np.flatnonzero(out.parents[N:] < N) + N                               # generation 1
     a = out.parents[twig]
     x = out.nodes3d.astype(np.float64)
     rel = x[:, twig] - x[:, a]                                                   # twig vector per frame
-    rigid = bn.quat_rotate(q[:, [bone_of_node[int(n)] for n in a]], rel[0][None])  # riding without lag
+    rigid = rotations.quat_rotate(q[:, [bone_of_node[int(n)] for n in a]], rel[0][None])  # riding without lag
     sway_twig = (rel - rel[:1]).reshape(len(x), -1)
     sway_parent = (rigid - rel[:1]).reshape(len(x), -1)
     F = len(x)
@@ -212,10 +210,11 @@ def test_pipeline_adds_twigs_after_the_motion_inside_the_envelope():
     reconstructed nodes, twigs appended inside the solver's envelope, the mesh settings in meta."""
     import os
 
+    from samples import plain_settings
     from tree_from_video.core import pipeline
     from trees import ROOT
     folder = os.path.join(ROOT, "sample_videos", "broad")
-    s = pipeline.Settings(frames="0:30")
+    s = plain_settings(frames="0:30")
     s.leaves = None
     res = pipeline.run(os.path.join(folder, "video.mp4"), os.path.join(folder, "outline.json"), s)
     bare = pipeline.build_3d(res, s)
@@ -230,7 +229,7 @@ def test_pipeline_adds_twigs_after_the_motion_inside_the_envelope():
     assert added == twiggy.n_nodes - N > N // 4
     env = envelope_from_meta(twiggy.meta)
     assert env.contains(twiggy.nodes3d[0, N:].astype(float), tol=1e-6).all()
-    bn.check_positions(twiggy.parents, twiggy.nodes3d)
+    bones.check_positions(twiggy.parents, twiggy.nodes3d)
     with pytest.raises(InputError, match="twig depth"):
         s.twigs.depth = 9
         pipeline.check_settings(s)
@@ -279,7 +278,7 @@ def test_fbx_with_twigs_reimports_their_bones_animated(blender, twiggy, tmp_path
     blender.ops.wm.read_factory_settings(use_empty=True)
     blender.ops.import_scene.fbx(filepath=str(path), anim_offset=0)
     rig = [ob for ob in blender.context.scene.objects if ob.type == "ARMATURE"][0]
-    names = bn.bone_names(tree.parents)
+    names = bones.bone_names(tree.parents)
     twig_names = [f"B{c:03d}" for c in range(N, tree.n_nodes)]
     assert set(twig_names) <= {b.name for b in rig.data.bones} and len(rig.data.bones) == len(names)
     tol = 1e-4 * tree_height(tree)

@@ -1,10 +1,10 @@
 """Unit tests of the core's building blocks on cases small enough to check by hand."""
+import cv2
 import numpy as np
 import pytest
 import scipy.sparse as sp
-import cv2
-
-from tree_from_video.core import hierarchy, skeleton2d, tracks as trk
+from tree_from_video.core.reconstruct import hierarchy, skeleton2d
+from tree_from_video.core.reconstruct import tracks as trk
 
 
 def _two_blobs(n=60, seed=0):

@@ -5,8 +5,7 @@ import os
 
 import numpy as np
 import pytest
-
-from tree_from_video.core import bones as bn
+from tree_from_video.core import bones
 from tree_from_video.core.tree3d import Tree3D
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -81,7 +80,7 @@ def pose_heads_dirs(rig, names) -> tuple[np.ndarray, np.ndarray]:
 
 def expected(tree: Tree3D, frame: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Heads, tails ``(B, 3)`` and unit directions of the bones at scene frame ``frame`` (1-based)."""
-    edges = bn.bone_edges(tree.parents)
+    edges = bones.bone_edges(tree.parents)
     p = tree.nodes3d[frame - 1].astype(np.float64)
     d = p[edges[:, 1]] - p[edges[:, 0]]
     return p[edges[:, 0]], p[edges[:, 1]], d / np.linalg.norm(d, axis=1, keepdims=True)
@@ -119,7 +118,6 @@ def addon():
     """The add-on registered in an empty factory scene for each test; yields ``scene.tree_video``
     (import it into the module, like :func:`empty_scene`)."""
     import bpy
-
     import tree_from_video
     bpy.ops.wm.read_factory_settings(use_empty=True)
     tree_from_video.register()

@@ -1,7 +1,6 @@
 """The "Tree from Video" sidebar panel (View3D › Sidebar › Tree) and its sub-panels."""
 import bpy
 
-
 _INFO_CACHE: dict = {}
 
 
@@ -10,7 +9,7 @@ def _video_info(path: str):
     import os
 
     from ..core.errors import InputError
-    from ..core.video import open_video
+    from ..core.reconstruct.video import open_video
     full = bpy.path.abspath(path) if path else ""
     if not full or not os.path.isfile(full):
         return None

@@ -2,9 +2,9 @@
 (``window_manager.tree_video_status``). Defaults reproduce the paper's settings."""
 import bpy
 
-from ..core.leaves import LeafParams
-from ..core.lift3d import LiftParams
-from ..core.motion import MotionParams
+from ..core.detail.leaf_clusters import LeafParams
+from ..core.reconstruct.lift import LiftParams
+from ..core.reconstruct.motion import MotionParams
 
 _M = MotionParams()
 _L = LiftParams()
@@ -14,7 +14,7 @@ _LIBRARY_ITEMS: list = []
 
 def _library_items(self, context):
     """Enum items of the bundled species (kept referenced: Blender requires it for dynamic enums)."""
-    from ..core.pgm import species_library
+    from ..core.generate.species import species_library
     _LIBRARY_ITEMS[:] = [(name, name.title(), f"Species fitted from the '{name}' sample video")
                          for name in sorted(species_library())] or [("NONE", "None", "No species bundled")]
     return _LIBRARY_ITEMS

@@ -24,6 +24,7 @@ print("selected after the forest:", len(bpy.context.selected_objects), flush=Tru
 
 # show the Generate sub-panel: start the reconstruction sub-panels closed (screenshot only)
 from tree_from_video.ui import panel  # noqa: E402
+
 for cls in (panel.TREE_PT_source, panel.TREE_PT_outline, panel.TREE_PT_reconstruction, panel.TREE_PT_output):
     bpy.utils.unregister_class(cls)
     cls.bl_options = {"DEFAULT_CLOSED"}

@@ -11,9 +11,9 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from .errors import InputError
-from .outline import Outline, polygon_to_mask
-from .progress import ProgressFn, report
+from ..errors import InputError
+from ..outline import Outline, polygon_to_mask
+from ..progress import ProgressFn, report
 from .tracks import apply_affine, lk_forward_backward
 from .video import VideoInfo, iter_frames
 

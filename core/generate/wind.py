@@ -16,7 +16,7 @@ import warnings
 
 import numpy as np
 
-from .errors import InputError
+from ..errors import InputError
 
 SMOOTH_S = 0.25          # Gaussian smoothing of the audio RMS (seconds): gusts, not syllables
 

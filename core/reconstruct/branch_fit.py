@@ -28,7 +28,7 @@ import cv2
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .skeleton2d import edges_of, topological_order
+from ..topology import edges_of, topological_order
 
 #: the width of the background band sampled outside the outline, share of the tree's height
 BAND = 0.04
@@ -247,7 +247,7 @@ def fit_to_video(parents: np.ndarray, level: np.ndarray, nodes_px: np.ndarray, f
     trunk's own widths set k and only taper). Trusted branches keep their width
     and move their two nodes (a node by the mean offset of its trusted edges) onto the centre
     line; the others keep ``k · r_pipe``. Last, the radii :func:`taper`."""
-    from .tree3d import pipe_radii
+    from ..tree3d import pipe_radii
     parents = np.asarray(parents)
     N = len(parents)
     shift = np.zeros((N, 2))

@@ -3,7 +3,7 @@
 Per node ``i`` and rotation axis ``a`` (world x, y, z; radians, relative to the parent bone):
 
     e ~ Dir(α_energy)            energy ratios over the K kept frequencies f_k (Hz)
-    u, v from Dir(α_real), Dir(α_imag), the shift removed: u_k = (K+1) z_k − 1   (pgm.unshift_tuple)
+    u, v from Dir(α_real), Dir(α_imag), the shift removed: u_k = (K+1) z_k − 1   (features.unshift_tuple)
     ψ_k = atan2(v_k, u_k)        phase of bin k relative to the node's dominant bin
     rms ~ exp(N(a + b ρ_i, σ²))  (ρ normalized depth; clipped to ±2.5 σ)
     φ_i = Φ_a + N(0, spread²)    node phase: one tree phase per axis plus the example's spread
@@ -20,8 +20,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .bones import quat_mul, quat_rotate
-from .pgm import AxisMotion, SpeciesModel, node_depths, quat_exp, unshift_tuple
+from ..rotations import quat_exp, quat_mul, quat_rotate
+from .features import node_depths, unshift_tuple
+from .species import AxisMotion, SpeciesModel
 
 
 def sample_axis(m: AxisMotion, rho: np.ndarray, t: np.ndarray, rng: np.random.Generator,
@@ -29,7 +30,6 @@ def sample_axis(m: AxisMotion, rho: np.ndarray, t: np.ndarray, rng: np.random.Ge
     """``(F, M)`` rotation (radians) about one axis for ``M`` nodes of normalized depth ``rho
     (M,)`` at times ``t (F,)`` seconds (module docstring)."""
     M = len(rho)
-    K = len(m.freqs_hz)
     e = rng.dirichlet(m.energy, size=M)
     e = np.where(np.isfinite(e), np.maximum(e, 0.0), 0.0)
     e /= np.maximum(e.sum(1, keepdims=True), 1e-300)

@@ -22,8 +22,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .errors import InputError
-from .progress import ProgressFn, report, sub_progress
+from ..errors import InputError
+from ..progress import ProgressFn, report, sub_progress
 
 
 def _too_few(n: int, got: int, where: str, min_dist: float, strict: bool) -> None:

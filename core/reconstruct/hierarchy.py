@@ -20,7 +20,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.sparse.linalg import eigsh
 from scipy.spatial import cKDTree
 
-from .progress import ProgressFn, report
+from ..progress import ProgressFn, report
 from .tracks import Tracks
 
 

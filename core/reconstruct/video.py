@@ -12,7 +12,7 @@ from typing import Iterator
 import cv2
 import numpy as np
 
-from .errors import InputError
+from ..errors import InputError
 
 # FFmpeg prints its own complaints ("moov atom not found") straight to stderr; the user gets our
 # one-line error naming the fix instead. An explicit setting by the user wins.

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
+
 from .branch_fit import colour_reference, frame_lab, tree_map
 
 #: trunk samples below this count say nothing about the bark's colour

@@ -14,9 +14,9 @@ import os
 
 import numpy as np
 
+from ..fileio import atomic_savez
 from .appearance import AppearanceMaps
 from .hierarchy import Hierarchy
-from .model import atomic_savez
 from .tracks import Tracks
 
 VERSION = 1

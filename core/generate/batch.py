@@ -22,8 +22,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import InputError
-from .progress import ProgressFn
+from ..errors import InputError
+from ..progress import ProgressFn
 
 MAX_TREES = 1000
 FOLDER_FORMAT = "tree_{:03d}"
@@ -95,7 +95,7 @@ def check_request(req: GenerateRequest, has_video: bool) -> None:
 
 def load_species_spec(spec: str):
     """``(SpeciesModel, label)`` from a library name (``species/NAME.json``) or a species file."""
-    from .pgm import load_species, species_library
+    from .species import load_species, species_library
     lib = species_library()
     if spec in lib:
         return load_species(lib[spec]), spec
@@ -149,7 +149,7 @@ def n_frames_for(req: GenerateRequest, model) -> int:
 
 
 def _write_json(path: str, data) -> None:
-    from .model import publish
+    from ..fileio import publish
     fd, tmp = tempfile.mkstemp(prefix=".tmp-", suffix=".json", dir=os.path.dirname(os.path.abspath(path)))
     try:
         with os.fdopen(fd, "w", encoding="utf-8") as fh:
@@ -167,8 +167,8 @@ def generate_trees(model, species_label: str, envelope, envelope_label: str, req
     """Grow ``req.count`` trees of ``model`` in ``envelope`` into ``out_dir/tree_XXX/`` (tree3d.npz
     and whatever ``write_files(tree, folder) -> {format: path}`` writes), then ``generated.json``.
     Returns the per-tree entries of ``generated.json``."""
+    from ..tree3d import save_tree
     from .growth import GrowParams, grow_tree
-    from .tree3d import save_tree
     log = log or (lambda m: None)
     n_frames = n_frames_for(req, model)
     entries = []

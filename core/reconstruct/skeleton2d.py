@@ -18,9 +18,10 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial import cKDTree
 
+from ..outline import Outline
+from ..progress import ProgressFn, report
+from ..topology import branching_level, children_lists, edges_of, topological_order
 from .hierarchy import Hierarchy
-from .outline import Outline
-from .progress import ProgressFn, report
 from .tracks import Tracks
 
 FOLD_ALPHA = 0.4
@@ -50,82 +51,6 @@ class Skeleton2D:
     def edges(self) -> np.ndarray:
         """``(N-1, 2)`` (parent, child) index pairs."""
         return edges_of(self.parents)
-
-
-def edges_of(parents: np.ndarray) -> np.ndarray:
-    """``(N-1, 2)`` (parent, child) index pairs, one per node with a parent, in node order."""
-    parents = np.asarray(parents)
-    c = np.flatnonzero(parents >= 0)
-    return np.stack([parents[c], c], axis=1)
-
-
-def children_lists(parents: np.ndarray) -> list[list[int]]:
-    """Children of every node, in index order."""
-    ch: list[list[int]] = [[] for _ in parents]
-    for c, p in enumerate(parents):
-        if p >= 0:
-            ch[p].append(c)
-    return ch
-
-
-def topological_order(parents: np.ndarray) -> np.ndarray:
-    """Node indices root first, every parent before its children (breadth first)."""
-    ch = children_lists(parents)
-    order = [int(r) for r in np.flatnonzero(parents < 0)]
-    i = 0
-    while i < len(order):
-        order.extend(ch[order[i]])
-        i += 1
-    return np.array(order, int)
-
-
-@dataclass
-class Chains:
-    """How nodes sit on chains between *anchors* (a chosen node set; chains run between them).
-
-    ``up (N,)`` nearest strict ancestor that is an anchor (−1 for the root); ``down (N,)`` for a
-    node with exactly one child, the first anchor below it (−1 otherwise); ``arc (N,)`` path length
-    from ``up`` to the node along the skeleton (same units as the positions).
-    """
-
-    up: np.ndarray
-    down: np.ndarray
-    arc: np.ndarray
-
-    def fraction(self, nodes: np.ndarray) -> np.ndarray:
-        """Share of the way from ``up`` to ``down`` for chain ``nodes`` (0..1)."""
-        return self.arc[nodes] / np.maximum(self.arc[self.down[nodes]], 1e-9)
-
-
-def chains(parents: np.ndarray, pos: np.ndarray, anchors: np.ndarray) -> Chains:
-    """:class:`Chains` for ``parents (N,)``, positions ``pos (N, D)`` and ``anchors (N,)`` bool."""
-    N = len(parents)
-    order = topological_order(parents)
-    ch = children_lists(parents)
-    up = np.full(N, -1)
-    arc = np.zeros(N)
-    for n in order:
-        p = parents[n]
-        if p >= 0:
-            up[n] = p if anchors[p] else up[p]
-            arc[n] = float(np.linalg.norm(pos[n] - pos[p])) + (0.0 if anchors[p] else arc[p])
-    down = np.full(N, -1)
-    for n in order[::-1]:
-        if len(ch[n]) == 1:
-            c = ch[n][0]
-            down[n] = c if anchors[c] else down[c]
-    return Chains(up, down, arc)
-
-
-def branching_level(parents: np.ndarray) -> np.ndarray:
-    """Branching order per node: 0 on the trunk, +1 below every node with two or more children."""
-    ch = children_lists(parents)
-    level = np.zeros(len(parents), np.int32)
-    for n in topological_order(parents):
-        p = parents[n]
-        if p >= 0:
-            level[n] = level[p] + (1 if len(ch[p]) >= 2 else 0)
-    return level
 
 
 def binarize(parents: np.ndarray, pos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

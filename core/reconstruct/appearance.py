@@ -11,7 +11,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from .outline import Outline
+from ..outline import Outline
 
 
 @dataclass

@@ -29,9 +29,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import bones as bn
-from .details import BARK_PRESETS, minimum_jerk, random_bark
-from .errors import InputError
+from .. import bones, rotations
+from ..errors import InputError
+from ..params import check, param
+from .shapes import BARK_PRESETS, minimum_jerk, random_bark
 
 #: the largest lateral offset of a curly tube at curliness 1, share of its bone's length
 CURL_SHARE = 0.12
@@ -49,8 +50,8 @@ class MeshParams:
     if curly); ``seed`` for the offsets and the bark."""
 
     sides: int = 8
-    curliness: float = 0.0
-    bark: str = "none"
+    curliness: float = param(0.3, 0.0, 1.0, what="curliness")
+    bark: str = param("rough", choices=BARK_KINDS, what="bark")
     rings: int = 0
     seed: int = 0
 
@@ -64,10 +65,9 @@ def check_params(p: MeshParams) -> None:
     """Raise :class:`InputError` naming a bad setting."""
     if not isinstance(p.sides, (int, np.integer)) or p.sides < 3:
         raise InputError(f"tubes need at least 3 sides (got {p.sides})")
-    if not 0.0 <= float(p.curliness) <= 1.0:
-        raise InputError(f"curliness {p.curliness} out of range; use 0..1")
     if p.bark not in BARK_KINDS:
         raise InputError(f"unknown bark '{p.bark}'; choose one of {', '.join(BARK_KINDS)}")
+    check(p)
     if p.rings and p.rings < 2:
         raise InputError(f"a tube needs at least 2 rings per bone (got {p.rings})")
 
@@ -78,7 +78,7 @@ def branch_radii(parents: np.ndarray, radius: np.ndarray) -> tuple[np.ndarray, n
     The tail takes its node's radius. The head takes the parent node's radius if the bone
     continues its parent branch (it is the thickest child), else the smaller of the two: a side
     branch starts as thick as itself, not as the trunk it leaves."""
-    edges = bn.bone_edges(parents)
+    edges = bones.bone_edges(parents)
     radius = np.asarray(radius, np.float64)
     r_tail = radius[edges[:, 1]]
     thickest = np.zeros(len(parents))
@@ -106,7 +106,7 @@ def bark_terms(kind: str, sides: int, seed: int = 0) -> tuple[np.ndarray, np.nda
 def _arc_lengths(parents, edges, parent_bone, length):
     """Arc length ``(N,)`` from the root to every node along bones of ``length (B,)``."""
     arc = np.zeros(len(parents))
-    depth = bn.bone_depths(parent_bone)
+    depth = bones.bone_depths(parent_bone)
     for d in range(depth.max() + 1):
         idx = np.flatnonzero(depth == d)
         arc[edges[idx, 1]] = arc[edges[idx, 0]] + length[idx]
@@ -147,8 +147,8 @@ def tube_arrays(rest_pos: np.ndarray, parents: np.ndarray, rest: np.ndarray, r_h
     p = MeshParams(int(sides), float(curliness), bark, int(rings), int(seed))
     check_params(p)
     S, K = p.sides, p.ring_count()
-    edges = bn.bone_edges(parents)
-    parent_bone = bn.bone_parents(parents)
+    edges = bones.bone_edges(parents)
+    parent_bone = bones.bone_parents(parents)
     B = len(edges)
     P0 = np.asarray(rest_pos, np.float64)
     rest = np.asarray(rest, np.float64)
@@ -173,9 +173,9 @@ def tube_arrays(rest_pos: np.ndarray, parents: np.ndarray, rest: np.ndarray, r_h
     tangent /= np.linalg.norm(tangent, axis=-1, keepdims=True)
     # ring axes: the bone's X/Z swung (no twist) from the bone's Y onto the curve's tangent
     if p.curliness > 0:
-        q = bn.swing(np.broadcast_to(axis_y[:, None], tangent.shape), tangent)           # (B, K, 4)
-        rx = bn.quat_rotate(q, np.broadcast_to(axis_x[:, None], tangent.shape))
-        rz = bn.quat_rotate(q, np.broadcast_to(axis_z[:, None], tangent.shape))
+        q = rotations.swing(np.broadcast_to(axis_y[:, None], tangent.shape), tangent)           # (B, K, 4)
+        rx = rotations.quat_rotate(q, np.broadcast_to(axis_x[:, None], tangent.shape))
+        rz = rotations.quat_rotate(q, np.broadcast_to(axis_z[:, None], tangent.shape))
     else:                                       # straight: exactly the rest axes (Blender's float32)
         rx = np.broadcast_to(axis_x[:, None], tangent.shape)
         rz = np.broadcast_to(axis_z[:, None], tangent.shape)

@@ -1,14 +1,14 @@
 """Envelopes Ω' for generated trees (paper §5.3, Fig. 11 "tree topiary").
 
 Every envelope is a :class:`ShapeEnvelope`: the lift's surface of revolution
-(:class:`~.lift3d.Envelope`: per height a centre and a radius, metres) plus the exact 2D outline
+(:class:`~..envelope.Envelope`: per height a centre and a radius, metres) plus the exact 2D outline
 ``polygon (M, 2)`` in (x, z) metres that the 2D growth fills. Trunk base at the origin, z up, the
 lowest point of the shape at z = 0.
 
 Sources: built-in topiary shapes (:func:`topiary`: triangle, circle, pentagon, heart — a crown on a
 short stem so the trunk has somewhere to stand), a closed curve (:func:`envelope_from_polygon`,
 e.g. points sampled from a Blender curve), an image silhouette (:func:`envelope_from_image`), or
-a reconstructed tree's envelope (``lift3d.envelope_from_meta``; its 2D region is
+a reconstructed tree's envelope (``envelope.envelope_from_meta``; its 2D region is
 ``|x − centre(z)| ≤ radius(z)``).
 """
 from __future__ import annotations
@@ -19,9 +19,9 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from .errors import InputError
-from .lift3d import Envelope, envelope_from_outline
-from .outline import Outline
+from ..envelope import Envelope, envelope_from_outline
+from ..errors import InputError
+from ..outline import Outline
 
 SHAPES = ("triangle", "circle", "pentagon", "heart")
 RASTER_ROWS = 400            # rows of the raster a shape is turned into (cell = height / 400)
@@ -216,7 +216,7 @@ def envelope_from_polygon(poly: np.ndarray, name: str = "curve") -> ShapeEnvelop
     mask, s, _ = _rasterize([p], RASTER_ROWS)
     env = envelope_from_mask(mask, s, None, name)
     # where the raster's base (bottom middle) lies in the curve's coordinates
-    lo, hi = p.min(0), p.max(0)
+    lo = p.min(0)
     rows = np.flatnonzero(mask.any(1))
     cols = np.flatnonzero(mask[rows.max()])
     base_x = lo[0] + (0.5 * (cols.min() + cols.max()) - 4) * s
@@ -266,9 +266,9 @@ def envelope_from_image(path: str | os.PathLike, height_m: float) -> ShapeEnvelo
 
 
 def envelope_meta(env: Envelope) -> dict:
-    """JSON-able ``{"z", "centre", "radius"}`` metres (as ``lift3d.envelope_to_meta``) plus the
+    """JSON-able ``{"z", "centre", "radius"}`` metres (as ``envelope.envelope_to_meta``) plus the
     2D ``polygon`` and ``name`` when known."""
-    from .lift3d import envelope_to_meta
+    from ..envelope import envelope_to_meta
     out = envelope_to_meta(env, 1.0)
     poly = getattr(env, "polygon", None)
     if poly is not None:

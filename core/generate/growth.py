@@ -7,7 +7,7 @@
    ``⟨L1:L2:L3⟩`` from the model's Dirichlets and a turning sense ``s = ±1`` (clockwise with
    the example's share ``mirror_p``), so the continuing child leaves ``i`` at ``β + s·2πθ1`` and
    the side child at ``β + s·2π(θ1 + θ2)`` (β the direction back to ``j``; see
-   :func:`.pgm.canonical_angles`) with lengths ``L1·L2/L1`` and ``L1·L3/L1``. The growing direction is a 1-D search over a rotation
+   :func:`.features.canonical_angles`) with lengths ``L1·L2/L1`` and ``L1·L3/L1``. The growing direction is a 1-D search over a rotation
    φ of the pair about the view axis (L candidates in ±``max_turn``, keeping every angle ≥ 10°),
    maximizing, as in the lift (Eq. 2–6 in 2D),
 
@@ -25,8 +25,8 @@
    range); if none still fits the tip stops. Children are at most 4× the example's median branch.
    Branches shorter than the example's 5th-percentile branch stop growing.
 2. Each branch is split into bones of about the example's bone length (slightly bent by a
-   minimum-jerk bump, :func:`.details.curly_branch`, where that stays inside Ω').
-3. **Lift** with the reconstruction's Bayesian push (:func:`.lift3d.lift`) on a raster of Ω'.
+   minimum-jerk bump, :func:`..detail.shapes.curly_branch`, where that stays inside Ω').
+3. **Lift** with the reconstruction's Bayesian push (:func:`..reconstruct.lift.lift`) on a raster of Ω'.
 4. **Motion** from sampled spectra (:mod:`.sway`), scaled by wind × audio (:mod:`.wind`).
 
 Deterministic per seed: the same seed and parameters give the same tree.
@@ -38,15 +38,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .envelopes import Region2D, envelope_meta, envelope_polygon, region_of
-from .errors import InputError
-from .lift3d import Envelope, LiftParams, lift
-from .outline import Outline, polygon_to_mask
-from .pgm import SpeciesModel
-from .progress import ProgressFn, report, sub_progress
-from .skeleton2d import Skeleton2D, branching_level
+from ..envelope import Envelope
+from ..errors import InputError
+from ..outline import Outline, polygon_to_mask
+from ..progress import ProgressFn, report, sub_progress
+from ..reconstruct.lift import LiftParams, lift
+from ..reconstruct.skeleton2d import Skeleton2D
+from ..topology import branching_level
+from ..tree3d import Tree3D, pipe_radii
+from .envelopes import Region2D, envelope_meta, region_of
+from .species import SpeciesModel
 from .sway import forward_kinematics, sample_rotations
-from .tree3d import Tree3D, pipe_radii
 from .wind import audio_envelope, gain_curve
 
 MIN_ANGLE = np.radians(10.0)
@@ -297,7 +299,7 @@ def _subdivide(par: np.ndarray, pos: np.ndarray, region: Region2D, n_seg, bend: 
                rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Split every anchor edge into ``n_seg(length)`` bones, bent by a minimum-jerk bump of up to
     ``bend`` × length where the bent branch stays inside Ω'. Parents precede children."""
-    from .details import minimum_jerk
+    from ..detail.shapes import minimum_jerk
     new_index = np.zeros(len(par), int)
     parents = [-1]
     out = [pos[0]]
@@ -332,7 +334,7 @@ def _subdivide(par: np.ndarray, pos: np.ndarray, region: Region2D, n_seg, bend: 
 
 def lift_grown(g: Grown2D, region: Region2D, conifer: bool, p: GrowParams,
                progress: ProgressFn | None = None, env: Envelope | None = None):
-    """3D rest pose ``(N, 3)`` metres of the 2D tree by :func:`.lift3d.lift` on a raster of Ω'
+    """3D rest pose ``(N, 3)`` metres of the 2D tree by :func:`..reconstruct.lift.lift` on a raster of Ω'
     ``RASTER_HEIGHT_PX`` tall, depths then clipped into ``env``; returns (nodes, Lift)."""
     H = max(region.height(), float(g.pos[:, 1].max()), 1e-6)
     k = RASTER_HEIGHT_PX / H                                       # px per metre
@@ -410,6 +412,6 @@ def grow_tree(model: SpeciesModel, envelope: Envelope, params: GrowParams | None
     tree = Tree3D(g.parents.astype(np.int32), nodes3d.astype(np.float32), radius,
                   branching_level(g.parents).astype(np.int32), fps, p.name or f"{model.name}_{int(p.seed)}", meta)
     if p.leaf_density > 0 and model.leaves is not None:
-        from .leaves import grow_leaves
+        from ..detail.leaf_clusters import grow_leaves
         tree.leaves = grow_leaves(tree, model.leaves, p.leaf_density, int(p.seed))
     return tree

@@ -7,8 +7,8 @@ import tempfile
 import cv2
 import numpy as np
 
-from .model import publish
-from .progress import ProgressFn, report
+from ..fileio import publish
+from ..progress import ProgressFn, report
 from .skeleton2d import Skeleton2D
 from .tracks import Tracks
 from .video import VideoInfo, iter_frames

@@ -1,54 +1,17 @@
-"""Saving and loading stage outputs as ``.npz`` (+ JSON metadata inside it); never pickle.
-
-Files are written atomically: to a temporary name in the same folder, then renamed.
+"""The moving 2D skeleton as a file: ``skeleton.npz`` (``parents (N,)``, ``nodes2d (F, N, 2)`` px,
+``level (N,)``, ``fps`` and JSON metadata), written atomically, read without pickle.
 """
 from __future__ import annotations
 
 import json
 import os
-import tempfile
 
 import numpy as np
 
+from ..fileio import atomic_savez
 from .skeleton2d import Skeleton2D
 
 FORMAT_VERSION = 1
-
-
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
-
-
-def publish(tmp: str, path: str | os.PathLike) -> None:
-    """Give the finished temporary file ``tmp`` the permissions a plain new file would have
-    (``mkstemp`` makes it private) and rename it to ``path``."""
-    os.chmod(tmp, 0o666 & ~_umask())
-    os.replace(tmp, path)
-
-
-def temp_path(path: str | os.PathLike, suffix: str) -> str:
-    """A not-yet-existing hidden temporary name in ``path``'s folder (for writers that refuse to
-    write over an existing file or back it up, like Blender's save)."""
-    import uuid
-    folder = os.path.dirname(os.path.abspath(path))
-    return os.path.join(folder, f".tmp-{uuid.uuid4().hex[:12]}{suffix}")
-
-
-def atomic_savez(path: str | os.PathLike, **arrays) -> None:
-    """``np.savez_compressed`` to ``path`` through a temporary file in the same folder."""
-    path = os.fspath(path)
-    folder = os.path.dirname(os.path.abspath(path))
-    fd, tmp = tempfile.mkstemp(prefix=".tmp-", suffix=".npz", dir=folder)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            np.savez_compressed(fh, **arrays)
-        publish(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
 
 
 def skeleton_arrays(skel: Skeleton2D, meta: dict | None = None) -> dict:

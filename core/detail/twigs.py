@@ -42,11 +42,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import bones as bn
-from .lift3d import envelope_from_meta
-from .progress import ProgressFn, report
-from .skeleton2d import chains
-from .tree3d import Tree3D, plane_to_image
+from .. import bones, rotations
+from ..envelope import envelope_from_meta
+from ..errors import InputError
+from ..params import check, param
+from ..progress import ProgressFn, report
+from ..topology import chains
+from ..tree3d import Tree3D, plane_to_image
 
 #: shrink factors tried, in order, for a twig that leaves the envelope
 SHRINK = (1.0, 0.8, 0.6, 0.4)
@@ -65,12 +67,20 @@ class TwigParams:
     driver's rotation fully, 1 = stay at rest) of the twigs' motion; at most ``max_nodes`` twig
     nodes in all; twigs shorter than ``min_length`` × the tree's height are dropped."""
 
-    depth: int = 0
+    depth: int = param(2, 0, 6, what="twig depth", fix="0: no twigs")
     seed: int = 0
     lag_frames: int = 2
     attenuation: float = 0.25
     max_nodes: int = 5000
     min_length: float = 1e-3
+
+
+def check_twig_params(p: TwigParams) -> None:
+    """Raise :class:`InputError` for a twig setting out of range."""
+    check(p)
+    if p.lag_frames < 0 or not 0.0 <= p.attenuation <= 1.0:
+        raise InputError(f"twig lag {p.lag_frames} frames / attenuation {p.attenuation} out of range; "
+                         "use lag ≥ 0 and attenuation in 0..1")
 
 
 @dataclass
@@ -210,10 +220,7 @@ def add_twigs(tree: Tree3D, params: TwigParams | None = None,
     p = params or TwigParams()
     if p.depth <= 0:
         return tree
-    if p.lag_frames < 0 or not 0.0 <= p.attenuation <= 1.0:
-        from .errors import InputError
-        raise InputError(f"twig lag {p.lag_frames} frames / attenuation {p.attenuation} out of range; "
-                         "use lag ≥ 0 and attenuation in 0..1")
+    check_twig_params(p)
     parents = np.asarray(tree.parents, np.int64)
     nodes = np.asarray(tree.nodes3d, np.float64)
     rest = nodes[0]
@@ -361,11 +368,11 @@ def animate(nodes: np.ndarray, parents: np.ndarray, twig_root: np.ndarray, twig_
     """Positions ``(F, M, 3)`` of twig nodes: ``x_j(t) = x_a(t) + Q_twig(t) (x_j(0) − x_a(0))`` with
     ``a = twig_root (M,)`` (a tip of the reconstructed tree ``parents (N,)``, ``nodes (F, N, 3)``),
     ``twig_rest (M, 3)`` and ``Q_twig`` from :func:`twig_rotations` of the bone ending at ``a``."""
-    q = bn.world_rotations(parents, nodes)                                    # (F, B, 4)
+    q = bones.world_rotations(parents, nodes)                                    # (F, B, 4)
     bone_of_node = np.full(len(parents), -1, np.int64)
-    edges = bn.bone_edges(parents)
+    edges = bones.bone_edges(parents)
     bone_of_node[edges[:, 1]] = np.arange(len(edges))
     roots, inverse = np.unique(twig_root, return_inverse=True)
     qt = twig_rotations(q[:, bone_of_node[roots]], lag, attenuation)          # (F, R, 4)
     offset = twig_rest - nodes[0, twig_root]                                  # (M, 3)
-    return nodes[:, twig_root] + bn.quat_rotate(qt[:, inverse], offset[None])
+    return nodes[:, twig_root] + rotations.quat_rotate(qt[:, inverse], offset[None])

@@ -33,8 +33,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .progress import ProgressFn, report
-from .skeleton2d import chains, children_lists, topological_order
+from ..progress import ProgressFn, report
+from ..rotations import rodrigues
+from ..topology import chains, children_lists, topological_order
 
 
 @dataclass
@@ -95,18 +96,6 @@ def _levels(parents: np.ndarray) -> _Levels:
     return lv
 
 
-def rodrigues(w: np.ndarray) -> np.ndarray:
-    """Rotation matrices ``(B, 3, 3)`` for rotation vectors ``w (B, 3)`` (radians)."""
-    th = np.linalg.norm(w, axis=1)
-    k = w / np.maximum(th, 1e-12)[:, None]
-    K = np.zeros((len(w), 3, 3))
-    K[:, 0, 1], K[:, 0, 2] = -k[:, 2], k[:, 1]
-    K[:, 1, 0], K[:, 1, 2] = k[:, 2], -k[:, 0]
-    K[:, 2, 0], K[:, 2, 1] = -k[:, 1], k[:, 0]
-    s, c = np.sin(th)[:, None, None], np.cos(th)[:, None, None]
-    return np.eye(3)[None] + s * K + (1 - c) * (K @ K)
-
-
 def branch_angle(x: np.ndarray, p: np.ndarray, g: np.ndarray) -> np.ndarray:
     """Angle (radians) between branches p→x and g→p, for rows of ``(B, 3)`` positions."""
     a = x - p
@@ -153,7 +142,7 @@ def solve_motion(rest: np.ndarray, parents: np.ndarray, level: np.ndarray, targe
     """
     params = params or MotionParams()
     if params.solver not in ("probabilistic", "deterministic"):
-        from .errors import InputError
+        from ..errors import InputError
         raise InputError(f"unknown motion solver '{params.solver}'; use probabilistic or deterministic")
     F, N = targets.shape[:2]
     targets = smooth_chain_targets(np.asarray(targets, np.float64), parents)

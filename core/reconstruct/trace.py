@@ -29,13 +29,19 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import dijkstra
 
+from ..outline import Outline
+from ..progress import ProgressFn, report
+from ..topology import branching_level
 from .appearance import AppearanceMaps
 from .frame_evidence import frame_evidence
 from .hierarchy import Hierarchy
-from .outline import Outline
-from .progress import ProgressFn, report
-from .skeleton2d import (NODE_MOTION_SCALE, Skeleton2D, binarize, branching_level, crown_scale,
-                         node_motion)
+from .skeleton2d import (
+    NODE_MOTION_SCALE,
+    Skeleton2D,
+    binarize,
+    crown_scale,
+    node_motion,
+)
 from .tracks import Tracks
 
 
@@ -326,7 +332,7 @@ def hierarchy_geometry(hier: Hierarchy, p0: np.ndarray, base: np.ndarray, size: 
             last = len(pos) - 1
         return last
 
-    from .skeleton2d import topological_order
+    from ..topology import topological_order
     for c in topological_order(hier.parent):
         p = hier.parent[c]
         node_of[c] = chain(0 if p < 0 else node_of[p], place[c])

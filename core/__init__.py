@@ -1,0 +1,21 @@
+"""The core: pure Python (numpy/scipy/OpenCV), no bpy. Stages, in the order data flows:
+
+reconstruct/  video + outline → tracks → motion hierarchy → moving 2D skeleton (``Result``,
+              ``Skeleton2D``: ``nodes2d (F, N, 2)`` px) → 3D lift (``Lift``: rest nodes, px) → 3D
+              motion (``Motion``: ``nodes (F, N, 3)`` px); branch widths measured in frame 1.
+detail/       a ``Tree3D`` → the same tree with twigs copied from its forks, leaf clusters from
+              frame 1's seeds (``LeafClusters``), and its branch mesh (tubes, bark, curl).
+generate/     reconstructed ``Tree3D``s → a species (``SpeciesModel``: Dirichlets of shape and
+              motion) → new ``Tree3D``s grown in any envelope, swaying by wind or audio; forests.
+
+Shared by every stage, at this level: the tree model (``tree3d``: ``Tree3D``, ``LeafClusters``,
+and its ``meta`` keys in ``meta``), its bones (``bones``), topology helpers (``topology``),
+rotations (``rotations``), the envelope Ω (``envelope``), the outline (``outline``), file I/O
+(``fileio``: atomic npz/JSON), the product's defaults and ranges (``params``), errors, progress
+and background jobs. ``pipeline`` strings the stages end to end: ``run`` (the 2D stages) and
+``build_3d`` (3D lift, motion, branch widths, twigs, leaves).
+
+Imports point one way: ``reconstruct`` never imports ``detail`` or ``generate``; ``detail`` may
+use ``reconstruct``; ``generate`` may use both; the shared modules import no stage
+(``tests/test_structure.py`` walks the imports).
+"""

@@ -1,0 +1,129 @@
+"""The 2D stages strung together: one streaming pass over the video (tracks + bark statistics)
+→ hierarchy → moving 2D skeleton (paper §2 and Appendix A, or the traced skeleton).
+
+:func:`run` takes a video and an outline and returns a :class:`Result`; the 3D lift and motion
+(:mod:`.lift`, :mod:`.motion`) and the details are strung on top of it by
+:func:`tree_from_video.core.pipeline.build_3d`.
+"""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+
+from ..errors import InputError
+from ..outline import Outline, load_outline, polygon_outline
+from ..params import check, param
+from ..progress import ProgressFn, report, sub_progress
+from . import cache
+from .appearance import AppearanceAccumulator, AppearanceMaps
+from .hierarchy import Hierarchy, HierarchyParams, build_hierarchy
+from .skeleton2d import FOLD_ALPHA, Skeleton2D, paper_skeleton
+from .trace import TraceParams, traced_skeleton
+from .tracks import Tracker, TrackParams, Tracks
+from .video import VideoInfo, iter_frames, open_video, parse_frame_range, prefetch
+
+SKELETON_KINDS = ("traced", "paper")
+
+
+@dataclass
+class ReconstructSettings:
+    """What the 2D stages need besides the input files (defaults: the product's)."""
+
+    levels: int = param(6, 2, 9, what="levels", fix="the paper uses 5–7")
+    skeleton: str = param("traced", choices=SKELETON_KINDS, what="skeleton")
+    fold_alpha: float = param(FOLD_ALPHA, 0.0, 1.0, what="fold α")   # paper skeleton: x'_i += α (x'_j − x'_i)
+    frames: str | None = None       # "A:B", 0-based, B exclusive
+    scale: float = param(1.0, 0.0, 1.0, lo_open=True, what="scale")   # downscale factor for the video
+    cache_dir: str | None = None    # keep tracks + hierarchy here, keyed by video and settings
+    track: TrackParams = field(default_factory=TrackParams)
+    trace: TraceParams = field(default_factory=TraceParams)
+
+
+@dataclass
+class Result:
+    """The 2D reconstruction: the video read, the outline, the frame range ``start..stop-1``, the
+    tracks, the motion hierarchy, the appearance maps and the moving 2D skeleton."""
+
+    info: VideoInfo
+    outline: Outline
+    start: int
+    stop: int
+    tracks: Tracks
+    hierarchy: Hierarchy
+    maps: AppearanceMaps
+    skeleton: Skeleton2D
+
+    @property
+    def warnings(self) -> list[str]:
+        return list(dict.fromkeys(self.tracks.warnings + self.skeleton.warnings))
+
+
+def check_reconstruct(s: ReconstructSettings) -> None:
+    """Raise :class:`InputError` for a 2D setting out of range."""
+    check(s)
+
+
+def track_video(info: VideoInfo, outline: Outline, start: int, stop: int, params: TrackParams,
+                progress: ProgressFn | None = None) -> tuple[Tracks, AppearanceMaps]:
+    """One pass over frames ``start..stop-1``: tracks and appearance maps together."""
+    frames = prefetch(iter_frames(info, start, stop))
+    first = next(frames, None)
+    if first is None:
+        raise InputError(f"video '{info.path}' has no frame {start}; check --frames")
+    tracker = Tracker(first, outline, info.fps, start, params)
+    if len(tracker.raw) < 8:
+        raise InputError(f"only {len(tracker.raw)} trackable corners inside the outline; "
+                         "outline the whole tree (leaves and trunk) in the first frame")
+    acc = AppearanceAccumulator(first, outline)
+    total = stop - start
+    for k, frame in enumerate(frames, start=1):
+        gray = cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY)
+        tracker.feed(gray)
+        acc.feed(gray, tracker.camera[-1])
+        if k % 5 == 0:
+            report(progress, "tracking", k / total)
+    return tracker.result(), acc.maps()
+
+
+def run(video: str, outline_path, settings: ReconstructSettings | None = None,
+        progress: ProgressFn | None = None) -> Result:
+    """Video + outline → tracks, hierarchy and moving 2D skeleton. Raises InputError on bad input.
+
+    ``outline_path``: a polygon .json or mask image path, ``"auto"`` (what sways in the first
+    seconds, :mod:`.auto_outline`), or a polygon ``(M, 2)`` array in pixels of the original video
+    (e.g. from a Blender Mask)."""
+    s = settings or ReconstructSettings()
+    check_reconstruct(s)
+    info = open_video(video, s.scale)
+    start, stop = parse_frame_range(s.frames, info.frame_count)
+    if isinstance(outline_path, str) and outline_path == "auto":
+        from .reconstruct.auto_outline import auto_outline
+        outline = auto_outline(info, start)
+    elif isinstance(outline_path, (str, os.PathLike)):
+        outline = load_outline(outline_path, info.width, info.height, s.scale)
+    else:
+        outline = polygon_outline(np.asarray(outline_path, float) * s.scale, info.width, info.height)
+    cached = key = None
+    if s.cache_dir:
+        key = cache.stage_key(video, outline.mask, start, stop, s.scale, s.track, s.levels)
+        cached = cache.load(s.cache_dir, key)
+    if cached is not None:
+        tracks, maps, hier = cached
+        report(progress, "tracking (cached)", 0.85)
+    else:
+        tracks, maps = track_video(info, outline, start, stop, s.track, sub_progress(progress, 0.0, 0.7))
+        hier = build_hierarchy(tracks, HierarchyParams(levels=s.levels), sub_progress(progress, 0.7, 0.85))
+        if key is not None:
+            try:
+                cache.save(s.cache_dir, key, tracks, maps, hier)
+            except OSError:
+                pass                # a cache that cannot be written only costs time
+    sk_prog = sub_progress(progress, 0.85, 1.0)
+    if s.skeleton == "paper":
+        skel = paper_skeleton(tracks, hier, outline, alpha=s.fold_alpha, progress=sk_prog)
+    else:
+        skel = traced_skeleton(tracks, hier, outline, maps, s.trace, sk_prog)
+    return Result(info, outline, start, stop, tracks, hier, maps, skel)
