@@ -19,8 +19,7 @@ from ..core.errors import InputError
 from ..core.generate import envelopes, forest, growth, species
 from ..core.job import Job
 from ..core.progress import sub_progress
-from . import reconstruct_op
-from .reconstruct_op import _JobOperator, _status
+from . import jobs, reconstruct_op
 from .scene_build import (
     _set_scene_timing,
     build_tree,
@@ -140,7 +139,7 @@ def _grow_work(model, tree_src, spec, params, audio, slots_fn=None):
 
 # ----------------------------------------------------------------------------- operators
 
-class TREE_OT_generate(_JobOperator, bpy.types.Operator):
+class TREE_OT_generate(jobs.JobOperator, bpy.types.Operator):
     """Grow a new animated tree of the chosen species inside the chosen envelope, at the 3D cursor (Esc cancels)"""
 
     bl_idname = "tree_video.generate"
@@ -150,7 +149,7 @@ class TREE_OT_generate(_JobOperator, bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
-        return getattr(context.scene, "tree_video", None) is not None and not reconstruct_op._running()
+        return getattr(context.scene, "tree_video", None) is not None and not jobs.running()
 
     def make_job(self, context) -> Job:
         props = context.scene.tree_video
@@ -181,7 +180,7 @@ class TREE_OT_generate(_JobOperator, bpy.types.Operator):
         return {"FINISHED"}
 
 
-class TREE_OT_generate_forest(_JobOperator, bpy.types.Operator):
+class TREE_OT_generate_forest(jobs.JobOperator, bpy.types.Operator):
     """Scatter distinct animated trees of the species on the ground mesh (or an area at the 3D cursor), Poisson-disk spaced, each swaying with its own phase (Esc cancels)"""
 
     bl_idname = "tree_video.generate_forest"
@@ -243,7 +242,7 @@ class TREE_OT_generate_forest(_JobOperator, bpy.types.Operator):
         state = self._pending
         if state is None:
             return super().modal(context, event)
-        if event.type == "ESC" or context.window_manager.get("tree_video_cancel"):
+        if event.type == "ESC" or jobs.cancel_requested(context):
             state.remove()
             self._cleanup(context)
             self.report({"INFO"}, "forest cancelled; the scene is unchanged")
@@ -261,7 +260,7 @@ class TREE_OT_generate_forest(_JobOperator, bpy.types.Operator):
             state.remove()
             self._cleanup(context)
             raise
-        _status(context, f"building {state.k}/{len(state.trees)}", state.k / max(len(state.trees), 1))
+        jobs.status(context, f"building {state.k}/{len(state.trees)}", state.k / max(len(state.trees), 1))
         context.window_manager.progress_update(int(100 * state.k / max(len(state.trees), 1)))
         if not state.finished:
             return {"RUNNING_MODAL"}

@@ -16,10 +16,9 @@ from ..core import pipeline
 from ..core.errors import InputError
 from ..core.job import Job
 from ..core.reconstruct.video import open_video
-from . import annotation, clip_overlay
+from . import annotation, clip_overlay, jobs
 from .scene_build import build_tree
 
-POLL_SECONDS = 0.1
 #: the last reconstructed Tree3D of this session ({"tree": Tree3D}): Save Species and Generate use it
 LAST_TREE: dict = {}
 
@@ -104,83 +103,7 @@ def make_work(video, outline, settings: pipeline.Settings, name: str):
     return work
 
 
-class _JobOperator:
-    """Runs :meth:`make_job` in a worker thread driven by a modal timer (``invoke``), or blocking
-    (``execute``: scripts, background mode), then :meth:`done` on the main thread."""
-
-    _job: Job | None = None
-    _timer = None
-    what = "reconstruction"
-
-    def make_job(self, context) -> Job:
-        raise NotImplementedError
-
-    def done(self, context, result) -> set:
-        raise NotImplementedError
-
-    def execute(self, context):
-        try:
-            job = self.make_job(context)
-        except InputError as exc:
-            self.report({"ERROR"}, str(exc))
-            return {"CANCELLED"}
-        return self._finish(context, job.run_here())
-
-    def invoke(self, context, event):
-        try:
-            self._job = self.make_job(context).start()
-        except InputError as exc:
-            self.report({"ERROR"}, str(exc))
-            return {"CANCELLED"}
-        _RUNNING.add(self._job)
-        wm = context.window_manager
-        self._timer = wm.event_timer_add(POLL_SECONDS, window=context.window)
-        wm.progress_begin(0, 100)
-        wm.modal_handler_add(self)
-        _status(context, "starting", 0.0)
-        return {"RUNNING_MODAL"}
-
-    def modal(self, context, event):
-        job = self._job
-        if event.type == "ESC" or context.window_manager.get("tree_video_cancel"):
-            job.cancel()
-            job.join(timeout=5.0)
-            self._cleanup(context)
-            self.report({"INFO"}, f"{self.what} cancelled; the scene is unchanged")
-            return {"CANCELLED"}
-        if event.type != "TIMER":
-            return {"PASS_THROUGH"}
-        _status(context, job.stage, job.fraction)
-        context.window_manager.progress_update(int(100 * job.fraction))
-        if not job.done:
-            return {"RUNNING_MODAL"}
-        self._cleanup(context)
-        return self._finish(context, job)
-
-    def _finish(self, context, job: Job):
-        if job.cancelled:
-            self.report({"INFO"}, f"{self.what} cancelled; the scene is unchanged")
-            return {"CANCELLED"}
-        if job.error:
-            if job.details:
-                print(job.details)
-            self.report({"ERROR"}, job.error)
-            return {"CANCELLED"}
-        return self.done(context, job.result)
-
-    def _cleanup(self, context):
-        wm = context.window_manager
-        if self._timer is not None:
-            wm.event_timer_remove(self._timer)
-            self._timer = None
-        wm.progress_end()
-        _RUNNING.discard(self._job)
-        if "tree_video_cancel" in wm:
-            del wm["tree_video_cancel"]
-        _status(context, "", 0.0)
-
-
-class TREE_OT_reconstruct(_JobOperator, bpy.types.Operator):
+class TREE_OT_reconstruct(jobs.JobOperator, bpy.types.Operator):
     """Reconstruct the animated tree from the video and outline (Esc cancels)"""
 
     bl_idname = "tree_video.reconstruct"
@@ -190,7 +113,7 @@ class TREE_OT_reconstruct(_JobOperator, bpy.types.Operator):
     @classmethod
     def poll(cls, context):
         props = getattr(context.scene, "tree_video", None)
-        return props is not None and bool(props.video_path) and not _running()
+        return props is not None and bool(props.video_path) and not jobs.running()
 
     def make_job(self, context) -> Job:
         props = context.scene.tree_video
@@ -223,7 +146,7 @@ class TREE_OT_reconstruct(_JobOperator, bpy.types.Operator):
         return {"FINISHED"}
 
 
-class TREE_OT_preview(_JobOperator, bpy.types.Operator):
+class TREE_OT_preview(jobs.JobOperator, bpy.types.Operator):
     """Track the video and build the 2D skeleton only, then show tracks and skeleton over the clip
     in the Movie Clip editor (nothing is added to the scene)"""
 
@@ -247,7 +170,7 @@ class TREE_OT_preview(_JobOperator, bpy.types.Operator):
             self.report({"WARNING"}, w)
         self.report({"INFO"}, f"{result.tracks.points.shape[1]} tracks, {result.skeleton.n_nodes} nodes: "
                               "see them over the clip in the Movie Clip editor")
-        _redraw(context, "CLIP_EDITOR")
+        jobs.redraw(context, "CLIP_EDITOR")
         return {"FINISHED"}
 
 
@@ -259,10 +182,10 @@ class TREE_OT_cancel(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
-        return _running()
+        return jobs.running()
 
     def execute(self, context):
-        context.window_manager["tree_video_cancel"] = True
+        jobs.request_cancel(context)
         return {"FINISHED"}
 
 
@@ -304,36 +227,6 @@ class TREE_OT_open_clip(bpy.types.Operator):
         return {"FINISHED"}
 
 
-_RUNNING: set = set()
-
-
-def _running() -> bool:
-    return any(not j.done for j in _RUNNING)
-
-
-def _status(context, stage: str, fraction: float) -> None:
-    wm = context.window_manager
-    wm.tree_video_status = stage
-    wm.tree_video_progress = 100.0 * fraction
-    _redraw(context, "VIEW_3D")
-
-
-def _redraw(context, area_type: str) -> None:
-    """Redraw every area of ``area_type`` in every window."""
-    for window in context.window_manager.windows:
-        for area in window.screen.areas:
-            if area.type == area_type:
-                area.tag_redraw()
-
-
-def cancel_all(timeout: float = 2.0) -> None:
-    """Stop every running job (unregister): no thread outlives the add-on."""
-    for job in list(_RUNNING):
-        job.cancel()
-        job.join(timeout)
-    _RUNNING.clear()
-
-
 classes = (TREE_OT_reconstruct, TREE_OT_preview, TREE_OT_cancel, TREE_OT_open_clip)
 
 _register, _unregister = bpy.utils.register_classes_factory(classes)
@@ -345,6 +238,6 @@ def register():
 
 
 def unregister():
-    cancel_all()
+    jobs.cancel_all()
     clip_overlay.unregister()
     _unregister()

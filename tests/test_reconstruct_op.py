@@ -8,7 +8,7 @@ import pytest
 import tree_from_video
 from samples import committed, plain_settings
 from tree_from_video.core.job import Job
-from tree_from_video.operators import reconstruct_op
+from tree_from_video.operators import jobs, reconstruct_op
 from trees import addon  # noqa: F401  (autouse fixture: the add-on registered per test)
 
 VIDEO = os.path.join(committed("broad"), "video.mp4")
@@ -108,10 +108,10 @@ def test_internal_errors_become_one_line_with_details():
 
 def test_unregister_stops_running_jobs():
     job = Job(reconstruct_op.make_work(VIDEO, OUTLINE, plain_settings(), "T")).start()
-    reconstruct_op._RUNNING.add(job)
+    jobs._RUNNING.add(job)
     time.sleep(0.2)
-    reconstruct_op.cancel_all(timeout=2.0)
-    assert not job.alive and not reconstruct_op._RUNNING
+    jobs.cancel_all(timeout=2.0)
+    assert not job.alive and not jobs._RUNNING
 
 
 def test_preview_keeps_tracks_and_skeleton_for_the_clip_editor(addon):

@@ -1,0 +1,136 @@
+"""The modal-job base of the operators that run the core in a worker thread (Reconstruct, Track &
+Preview, Generate Tree, Generate Forest).
+
+:class:`JobOperator` starts a :class:`core.job.Job` and polls it on a timer (``invoke``) or runs it
+blocking (``execute``: scripts, background mode), then calls the operator's ``done`` on the main
+thread. While it runs, :func:`status` shows the stage in the status bar and the panel, Esc (or
+*Cancel*) stops it within a second, and :func:`running` tells the panels and polls that a job is
+under way. :func:`cancel_all` (unregister) leaves no thread behind.
+"""
+from __future__ import annotations
+
+from ..core.errors import InputError
+from ..core.job import Job
+
+POLL_SECONDS = 0.1
+#: window-manager flag set by *Cancel* (``tree_video.cancel``) and read by the running job's modal
+CANCEL_FLAG = "tree_video_cancel"
+
+_RUNNING: set = set()
+
+
+class JobOperator:
+    """Runs :meth:`make_job` in a worker thread driven by a modal timer (``invoke``), or blocking
+    (``execute``: scripts, background mode), then :meth:`done` on the main thread.
+
+    Mix it in before ``bpy.types.Operator``; set :attr:`what` to name the job in its messages."""
+
+    _job: Job | None = None
+    _timer = None
+    what = "reconstruction"
+
+    def make_job(self, context) -> Job:
+        raise NotImplementedError
+
+    def done(self, context, result) -> set:
+        raise NotImplementedError
+
+    def execute(self, context):
+        try:
+            job = self.make_job(context)
+        except InputError as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        return self._finish(context, job.run_here())
+
+    def invoke(self, context, event):
+        try:
+            self._job = self.make_job(context).start()
+        except InputError as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        _RUNNING.add(self._job)
+        wm = context.window_manager
+        self._timer = wm.event_timer_add(POLL_SECONDS, window=context.window)
+        wm.progress_begin(0, 100)
+        wm.modal_handler_add(self)
+        status(context, "starting", 0.0)
+        return {"RUNNING_MODAL"}
+
+    def modal(self, context, event):
+        job = self._job
+        if event.type == "ESC" or cancel_requested(context):
+            job.cancel()
+            job.join(timeout=5.0)
+            self._cleanup(context)
+            self.report({"INFO"}, f"{self.what} cancelled; the scene is unchanged")
+            return {"CANCELLED"}
+        if event.type != "TIMER":
+            return {"PASS_THROUGH"}
+        status(context, job.stage, job.fraction)
+        context.window_manager.progress_update(int(100 * job.fraction))
+        if not job.done:
+            return {"RUNNING_MODAL"}
+        self._cleanup(context)
+        return self._finish(context, job)
+
+    def _finish(self, context, job: Job):
+        if job.cancelled:
+            self.report({"INFO"}, f"{self.what} cancelled; the scene is unchanged")
+            return {"CANCELLED"}
+        if job.error:
+            if job.details:
+                print(job.details)
+            self.report({"ERROR"}, job.error)
+            return {"CANCELLED"}
+        return self.done(context, job.result)
+
+    def _cleanup(self, context):
+        wm = context.window_manager
+        if self._timer is not None:
+            wm.event_timer_remove(self._timer)
+            self._timer = None
+        wm.progress_end()
+        _RUNNING.discard(self._job)
+        if CANCEL_FLAG in wm:
+            del wm[CANCEL_FLAG]
+        status(context, "", 0.0)
+
+
+def running() -> bool:
+    """True while a job started by a :class:`JobOperator` is unfinished."""
+    return any(not j.done for j in _RUNNING)
+
+
+def request_cancel(context) -> None:
+    """Ask the running job to stop (its modal sees it on the next event)."""
+    context.window_manager[CANCEL_FLAG] = True
+
+
+def cancel_requested(context) -> bool:
+    return bool(context.window_manager.get(CANCEL_FLAG))
+
+
+def status(context, stage: str, fraction: float) -> None:
+    """Show ``stage`` and ``fraction`` (0..1) of the running job in the panel (window manager
+    ``tree_video_status`` / ``tree_video_progress``); ``""`` clears it."""
+    wm = context.window_manager
+    wm.tree_video_status = stage
+    wm.tree_video_progress = 100.0 * fraction
+    redraw(context, "VIEW_3D")
+
+
+def redraw(context, area_type: str) -> None:
+    """Redraw every area of ``area_type`` in every window."""
+    for window in context.window_manager.windows:
+        for area in window.screen.areas:
+            if area.type == area_type:
+                area.tag_redraw()
+
+
+def cancel_all(timeout: float = 2.0) -> None:
+    """Stop every running job (unregister): no thread outlives the add-on."""
+    for job in list(_RUNNING):
+        job.cancel()
+        job.join(timeout)
+    _RUNNING.clear()
