@@ -11,7 +11,7 @@ pkg = load_package()
 import bpy  # noqa: E402
 from samples import plain_settings
 from tree_from_video.core import pipeline
-from tree_from_video.operators import scene_build  # noqa: E402
+from tree_from_video.operators.scene import build  # noqa: E402
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 TARGET_S = 10.0
@@ -30,7 +30,7 @@ def main():
     t_core = time.perf_counter() - t
     bpy.ops.wm.read_factory_settings(use_empty=True)
     t = time.perf_counter()
-    built = scene_build.build_tree(bpy.context, tree, "Bench")
+    built = build.build_tree(bpy.context, tree, "Bench")
     t_build = time.perf_counter() - t
     bones = len(built["armature"].data.bones)
     print(f"leaves: {tree.leaves.count} clusters × {tree.leaves.cards} cards = {built['leaf_polygons']:,} leaf polygons, "

@@ -4,7 +4,7 @@ import os
 import bpy
 
 from ..core.errors import InputError
-from . import export
+from .scene import export
 
 EXTENSIONS = {"FBX": ".fbx", "GLB": ".glb", "USD": ".usdc"}
 

@@ -20,7 +20,7 @@ from ..core.generate import envelopes, forest, growth, species
 from ..core.job import Job
 from ..core.progress import sub_progress
 from . import jobs, reconstruct_op
-from .scene_build import (
+from .scene.build import (
     _set_scene_timing,
     build_tree,
     deselect_all,

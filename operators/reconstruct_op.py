@@ -16,8 +16,9 @@ from ..core import pipeline
 from ..core.errors import InputError
 from ..core.job import Job
 from ..core.reconstruct.video import open_video
-from . import annotation, clip_overlay, jobs
-from .scene_build import build_tree
+from . import jobs
+from .scene import annotation, clip_overlay
+from .scene.build import build_tree
 
 #: the last reconstructed Tree3D of this session ({"tree": Tree3D}): Save Species and Generate use it
 LAST_TREE: dict = {}

@@ -66,7 +66,8 @@ PLATFORMS = {
 PLATFORM_PREFIX = {"linux": "manylinux", "windows": "win", "macos": "macosx"}
 
 #: What a built zip must hold, and must not.
-REQUIRED = ("__init__.py", MANIFEST, "core/pipeline.py", "operators/__init__.py", "ui/__init__.py")
+REQUIRED = ("__init__.py", MANIFEST, "core/pipeline.py", "operators/__init__.py", "operators/scene/__init__.py",
+            "operators/scene/build.py", "ui/__init__.py")
 FORBIDDEN = re.compile(r"^(tests|benchmarks|scripts|sample_videos|docs|out|dist|\.git|\.ci|\.venv)/"
                        r"|\.(mp4|npz|pyc)$|__pycache__/")
 

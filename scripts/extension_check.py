@@ -12,7 +12,7 @@ With the bpy wheel in a venv holding the zip's wheels, the add-on folder extract
 
 Checks that the add-on is enabled (Blender) or registers (wheel), runs ``core.pipeline.run`` on the
 sample with ``Settings(frames="0:24")``, ``core.pipeline.build_3d`` and
-``operators.scene_build.build_tree(bpy.context, tree, "T")``, and asserts an armature with bones
+``operators.scene.build.build_tree(bpy.context, tree, "T")``, and asserts an armature with bones
 and keyframes. ``--site DIR`` also asserts scipy and cv2 were imported from DIR (the wheels).
 Exits 0 on success, 1 on any failure.
 """
@@ -81,10 +81,10 @@ def main() -> int:
                 return 1
 
     pipeline = importlib.import_module(f"{name}.core.pipeline")
-    library = importlib.import_module(f"{name}.core.pgm").species_library()
+    library = importlib.import_module(f"{name}.core.generate.species").species_library()
     assert {"broad", "sparse", "conifer"} <= set(library), f"species library incomplete: {sorted(library)}"
-    scene_build = importlib.import_module(f"{name}.operators.scene_build")
-    action_api = importlib.import_module(f"{name}.operators.action_api")
+    build = importlib.import_module(f"{name}.operators.scene.build")
+    action_api = importlib.import_module(f"{name}.operators.scene.action_api")
 
     sample = os.path.abspath(a.sample)
     settings = pipeline.Settings(frames=a.frames)
@@ -95,7 +95,7 @@ def main() -> int:
     tree = pipeline.build_3d(res, settings)
     t_3d = time.perf_counter() - t
     t = time.perf_counter()
-    out = scene_build.build_tree(bpy.context, tree, "T")
+    out = build.build_tree(bpy.context, tree, "T")
     t_build = time.perf_counter() - t
 
     rig = out["armature"]

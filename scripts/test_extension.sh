@@ -46,7 +46,7 @@ U=$WORK/user
 cat "$WORK/install.log"
 # install-file exits 0 even when it fails: check what it left behind.
 EXT=$U/extensions/user_default/tree_from_video
-for f in blender_manifest.toml __init__.py core/pipeline.py operators/scene_build.py ui/panel.py; do
+for f in blender_manifest.toml __init__.py core/pipeline.py operators/scene/build.py ui/panel.py; do
   [ -f "$EXT/$f" ] || fail "install-file did not install $f (see the log above)"
 done
 SITE=$(echo "$U"/extensions/.local/lib/python3.*/site-packages)

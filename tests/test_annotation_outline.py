@@ -16,7 +16,8 @@ import pytest
 from samples import committed
 from tree_from_video.core.errors import InputError
 from tree_from_video.core.outline import polygon_to_mask
-from tree_from_video.operators import annotation, reconstruct_op
+from tree_from_video.operators import reconstruct_op
+from tree_from_video.operators.scene import annotation
 from trees import addon  # noqa: F401  (autouse fixture: the add-on registered per test)
 
 HERE = os.path.dirname(os.path.abspath(__file__))

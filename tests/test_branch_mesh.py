@@ -10,7 +10,7 @@ from tree_from_video.core import bones
 from tree_from_video.core.detail import branch_mesh as bm
 from tree_from_video.core.detail.shapes import BARK_PRESETS
 from tree_from_video.core.errors import InputError
-from tree_from_video.operators import scene_build
+from tree_from_video.operators.scene import build
 from trees import (
     assert_closed_tubes,
     binary_tree,
@@ -205,7 +205,7 @@ def _weights(ob):
 
 
 def test_built_mesh_counts_weights_and_closure(tree):
-    res = scene_build.build_tree(bpy.context, tree, "Tree", curliness=0.6, bark="rough")
+    res = build.build_tree(bpy.context, tree, "Tree", curliness=0.6, bark="rough")
     ob = res["mesh"]
     B, K, S = len(tree.edges()), bm.CURLY_RINGS, 8
     me = ob.data
@@ -234,14 +234,14 @@ def _rest(rig, tree):
 def test_mesh_settings_come_from_the_tree_meta(tree):
     t = broad_tree(5)
     t.meta["mesh"] = {"curliness": 0.4, "bark": "smooth", "seed": 2}
-    p = scene_build.mesh_params(t)
+    p = build.mesh_params(t)
     assert (p.curliness, p.bark, p.seed) == (0.4, "smooth", 2)
-    p = scene_build.mesh_params(t, curliness=0.0, bark="none")
+    p = build.mesh_params(t, curliness=0.0, bark="none")
     assert (p.curliness, p.bark) == (0.0, "none")
-    res = scene_build.build_tree(bpy.context, t, "T")
+    res = build.build_tree(bpy.context, t, "T")
     assert len(res["mesh"].data.vertices) == bm.CURLY_RINGS * 8 * len(t.edges())
     with pytest.raises(InputError, match="bark"):
-        scene_build.build_tree(bpy.context, t, "U", bark="mossy")
+        build.build_tree(bpy.context, t, "U", bark="mossy")
     assert "U" not in bpy.data.collections
 
 
@@ -257,7 +257,7 @@ def test_timing_and_triangles_of_a_400_bone_tree():
         g = bm.tube_arrays(big.nodes3d[0], big.parents, rest, r_head, r_tail, sides, **args)
         dt = time.perf_counter() - t0
         bpy.ops.wm.read_factory_settings(use_empty=True)
-        res = scene_build.build_tree(bpy.context, big, "Big", sides=sides, **args)
+        res = build.build_tree(bpy.context, big, "Big", sides=sides, **args)
         stats = bm.mesh_stats(g)
         assert len(res["mesh"].data.vertices) == stats["vertices"]
         rows.append((kw, stats, dt, res["timings"]["mesh"], res["timings"]["total"]))
@@ -270,7 +270,7 @@ def test_timing_and_triangles_of_a_400_bone_tree():
 
 @pytest.mark.parametrize("kind", ["none", "smooth", "rough"])
 def test_bark_material_is_procedural_and_uv_mapped(kind):
-    mat = scene_build.bark_material("Bark", kind)
+    mat = build.bark_material("Bark", kind)
     nodes = {n.type for n in mat.node_tree.nodes}
     assert {"TEX_NOISE", "TEX_VORONOI", "BUMP", "BSDF_PRINCIPLED", "OUTPUT_MATERIAL"} <= nodes
     assert ("TEX_WAVE" in nodes) == (kind != "none")                  # furrows along the branch
@@ -278,4 +278,4 @@ def test_bark_material_is_procedural_and_uv_mapped(kind):
     assert ("TEX_COORD", "UV", "MAPPING") in links                    # follows the mesh's UVs
     bump = next(n for n in mat.node_tree.nodes if n.type == "BUMP")
     assert bump.inputs["Height"].is_linked
-    assert bump.inputs["Strength"].default_value == pytest.approx(scene_build.BARK_LOOK[kind][0])
+    assert bump.inputs["Strength"].default_value == pytest.approx(build.BARK_LOOK[kind][0])

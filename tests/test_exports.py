@@ -11,7 +11,7 @@ import bpy
 import numpy as np
 import pytest
 from tree_from_video.core.errors import InputError
-from tree_from_video.operators import export, scene_build
+from tree_from_video.operators.scene import build, export
 from trees import (
     broad_tree,
     empty_scene,  # noqa: F401  (autouse fixture)
@@ -31,7 +31,7 @@ def tree():
 
 @pytest.fixture
 def built(tree):
-    res = scene_build.build_tree(bpy.context, tree, "Tree")
+    res = build.build_tree(bpy.context, tree, "Tree")
     return [res["armature"], res["mesh"]]
 
 

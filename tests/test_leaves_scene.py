@@ -9,7 +9,7 @@ import pytest
 from samples import plain_settings
 from tree_from_video.core import pipeline
 from tree_from_video.core.detail import leaf_clusters
-from tree_from_video.operators import action_api, export, leaves_build, scene_build
+from tree_from_video.operators.scene import action_api, build, export, leaves
 from trees import (
     ROOT,
     empty_scene,  # noqa: F401  (autouse fixture)
@@ -31,7 +31,7 @@ def tree():
 
 
 def _leaf_names(tree):
-    return leaves_build.leaf_bone_names(tree.leaves.count)
+    return leaves.leaf_bone_names(tree.leaves.count)
 
 
 def _rotation_angle_about(q, axis):
@@ -40,7 +40,7 @@ def _rotation_angle_about(q, axis):
 
 
 def test_leaf_bones_ride_their_branches_and_flutter(tree):
-    built = scene_build.build_tree(bpy.context, tree, "Leafy")
+    built = build.build_tree(bpy.context, tree, "Leafy")
     rig, leaf_obj = built["armature"], built["leaves"]
     names = _leaf_names(tree)
     L = tree.leaves
@@ -67,9 +67,9 @@ def test_leaf_bones_ride_their_branches_and_flutter(tree):
                                    atol=1e-4)
     # every leaf's own flap: four shape keys whose keyed weights rebuild sin(ωt + φ_leaf)
     keys = leaf_obj.data.shape_keys
-    assert [k.name for k in keys.key_blocks] == ["Basis", *leaves_build.FLAP_KEYS]
+    assert [k.name for k in keys.key_blocks] == ["Basis", *leaves.FLAP_KEYS]
     want = leaf_clusters.flap_weights(tree.n_frames, tree.fps, L.leaf_hz)
-    for i, name in enumerate(leaves_build.FLAP_KEYS):
+    for i, name in enumerate(leaves.FLAP_KEYS):
         path = f'key_blocks["{name}"].value'
         fc = next(f for f in action_api.action_fcurves(keys.animation_data.action) if f.data_path == path)
         got = np.array([fc.evaluate(f) for f in range(1, tree.n_frames + 1)])
@@ -94,9 +94,9 @@ def test_leaf_bones_ride_their_branches_and_flutter(tree):
 def test_a_failed_leaf_build_leaves_nothing(tree, monkeypatch):
     def broken(*args, **kwargs):
         raise RuntimeError("leaf mesh failed")
-    monkeypatch.setattr(leaves_build, "build_leaf_mesh", broken)
+    monkeypatch.setattr(leaves, "build_leaf_mesh", broken)
     with pytest.raises(RuntimeError, match="leaf mesh failed"):
-        scene_build.build_tree(bpy.context, tree, "Leafy")
+        build.build_tree(bpy.context, tree, "Leafy")
     for coll in ("objects", "meshes", "armatures", "materials", "images", "actions"):
         assert len(getattr(bpy.data, coll)) == 0, coll
     assert "Leafy" not in bpy.data.collections
@@ -114,7 +114,7 @@ def _glb_flutter(doc, binary, node):
 
 def test_leaves_are_in_the_gltf_fbx_and_usd_exports_animated(tree, tmp_path):
     from test_exports import accessor, read_glb
-    built = scene_build.build_tree(bpy.context, tree, "Leafy")
+    built = build.build_tree(bpy.context, tree, "Leafy")
     objects = [built["armature"], built["mesh"], built["leaves"]]
     names = _leaf_names(tree)
     L = tree.leaves
@@ -165,7 +165,7 @@ def test_leaves_are_in_the_gltf_fbx_and_usd_exports_animated(tree, tmp_path):
         print("USD: this Blender has no USD exporter (the clear error is tested in test_exports)")
         return
     bpy.ops.wm.read_factory_settings(use_empty=True)
-    built = scene_build.build_tree(bpy.context, tree, "Leafy")
+    built = build.build_tree(bpy.context, tree, "Leafy")
     usd = tmp_path / "tree.usda"
     export.export_usd(usd, [built["armature"], built["mesh"], built["leaves"]])
     try:
@@ -202,14 +202,14 @@ def test_a_users_leaf_image_is_packed_and_a_bad_one_is_refused(tree, tmp_path):
     img[4:28, 4:12] = (40, 160, 60, 255)                  # BGRA: a green blade
     good = tmp_path / "leaf.png"
     cv2.imwrite(str(good), img)
-    built = scene_build.build_tree(bpy.context, tree, "Leafy", leaf_image=str(good))
+    built = build.build_tree(bpy.context, tree, "Leafy", leaf_image=str(good))
     mat = built["leaves"].data.materials[0]
-    images = leaves_build.material_images(mat)
+    images = leaves.material_images(mat)
     assert len(images) == 1 and tuple(images[0].size) == (16, 32) and images[0].packed_file is not None
     bpy.ops.wm.read_factory_settings(use_empty=True)
     bad = tmp_path / "leaf.png.txt"
     bad.write_text("not an image")
     with pytest.raises(InputError, match="leaf image|not an image"):
-        scene_build.build_tree(bpy.context, tree, "Leafy", leaf_image=str(bad))
+        build.build_tree(bpy.context, tree, "Leafy", leaf_image=str(bad))
     for coll in ("objects", "meshes", "armatures", "materials", "images", "actions"):
         assert len(getattr(bpy.data, coll)) == 0, coll

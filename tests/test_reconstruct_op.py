@@ -116,7 +116,7 @@ def test_unregister_stops_running_jobs():
 
 def test_preview_keeps_tracks_and_skeleton_for_the_clip_editor(addon):
     from samples import load_truth
-    from tree_from_video.operators import clip_overlay
+    from tree_from_video.operators.scene import clip_overlay
     addon.video_path, addon.outline_path = VIDEO, OUTLINE
     addon.use_frame_range, addon.frame_start, addon.frame_end = True, 10, 40
     before = _ids()
@@ -138,7 +138,7 @@ def test_preview_keeps_tracks_and_skeleton_for_the_clip_editor(addon):
 
 
 def test_export_buttons_write_the_tree_and_refuse_bad_targets(addon, tmp_path):
-    from tree_from_video.operators import export
+    from tree_from_video.operators.scene import export
     addon.video_path, addon.outline_path = VIDEO, OUTLINE
     addon.use_frame_range, addon.frame_start, addon.frame_end = True, 0, 24
     addon.collection_name = "Export Me"

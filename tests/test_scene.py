@@ -8,7 +8,7 @@ import pytest
 from tree_from_video.core import bones, rotations
 from tree_from_video.core.errors import InputError
 from tree_from_video.core.tree3d import Tree3D
-from tree_from_video.operators import action_api, scene_build
+from tree_from_video.operators.scene import action_api, build
 from trees import (
     assert_closed_tubes,
     binary_tree,
@@ -114,7 +114,7 @@ def test_degenerate_trees_are_input_errors():
 # ----------------------------------------------------------------------------- the built scene
 
 def test_build_bones_keys_and_scene_timing(tree):
-    res = scene_build.build_tree(bpy.context, tree, "Tree")
+    res = build.build_tree(bpy.context, tree, "Tree")
     rig, coll = res["armature"], res["collection"]
     assert coll.name == "Tree" and coll.name in bpy.context.scene.collection.children
     assert {ob.name for ob in coll.objects} == {"Tree Rig", "Tree Branches"}
@@ -151,7 +151,7 @@ def test_build_bones_keys_and_scene_timing(tree):
 
 def test_fractional_fps_uses_fps_base(tree):
     t = Tree3D(tree.parents, tree.nodes3d[:10], tree.radius, tree.level, 29.97)
-    scene_build.build_tree(bpy.context, t, "Tree", mesh=False)
+    build.build_tree(bpy.context, t, "Tree", mesh=False)
     r = bpy.context.scene.render
     assert r.fps == 30
     assert r.fps / r.fps_base == pytest.approx(29.97, rel=1e-6)
@@ -159,7 +159,7 @@ def test_fractional_fps_uses_fps_base(tree):
 
 
 def test_evaluated_pose_matches_input_positions(tree):
-    res = scene_build.build_tree(bpy.context, tree, "Tree")
+    res = build.build_tree(bpy.context, tree, "Tree")
     names = [f"B{c:03d}" for c in tree.edges()[:, 1]]
     tol = 1e-4 * tree_height(tree)
     worst = 0.0
@@ -178,7 +178,7 @@ def _segment_distance(p, a, b):
 
 
 def test_evaluated_mesh_follows_the_bones(tree):
-    res = scene_build.build_tree(bpy.context, tree, "Tree")
+    res = build.build_tree(bpy.context, tree, "Tree")
     ob = res["mesh"]
     sides = 8
     B = len(tree.edges())
@@ -189,13 +189,13 @@ def test_evaluated_mesh_follows_the_bones(tree):
     assert ob.data.materials[0] == res["material"] and res["material"].node_tree is not None
     v = ob.data.vertices[2 * sides * 5 + 3]
     assert [(ob.vertex_groups[g.group].name, g.weight) for g in v.groups] == [(f"B{tree.edges()[5, 1]:03d}", 1.0)]
-    r_head, r_tail = scene_build.branch_radii(tree.parents, tree.radius)
+    r_head, r_tail = build.branch_radii(tree.parents, tree.radius)
     reach = 1.5 * np.maximum(r_head, r_tail) + 1e-4                 # ring radius, head overlap
     vert_bone = np.repeat(np.arange(B), 2 * sides)
     positions = {}
     for k in (1, 30, 60):
         bpy.context.scene.frame_set(k)
-        co, _ = scene_build.evaluated_world_mesh(ob)
+        co, _ = build.evaluated_world_mesh(ob)
         heads, tails, _ = expected(tree, k)
         d = _segment_distance(co, heads[vert_bone], tails[vert_bone])
         assert (d <= reach[vert_bone]).all(), f"frame {k}: a vertex is {d.max():.3f} m from its bone"
@@ -205,7 +205,7 @@ def test_evaluated_mesh_follows_the_bones(tree):
 
 
 def test_mesh_is_closed_with_outward_normals(tree):
-    me = scene_build.build_tree(bpy.context, tree, "Tree")["mesh"].data
+    me = build.build_tree(bpy.context, tree, "Tree")["mesh"].data
     assert_closed_tubes(me, 16)
     uv = np.empty(len(me.loops) * 2, np.float32)
     me.uv_layers["UVMap"].data.foreach_get("uv", uv)
@@ -227,7 +227,7 @@ def test_failure_mid_build_leaves_nothing(tree, monkeypatch, where):
     scene = bpy.context.scene
     scene.render.fps, scene.frame_end = 50, 77
     if where == "edit_mode":
-        monkeypatch.setattr(scene_build, "_edit_bones", _raise_after(scene_build._edit_bones))
+        monkeypatch.setattr(build, "_edit_bones", _raise_after(build._edit_bones))
     elif where == "keys":
         calls = {"n": 0}
         original = action_api.write_keys
@@ -239,33 +239,33 @@ def test_failure_mid_build_leaves_nothing(tree, monkeypatch, where):
             original(*args)
         monkeypatch.setattr(action_api, "write_keys", flaky)
     else:
-        monkeypatch.setattr(scene_build, "_build_mesh", _raise_after(scene_build._build_mesh))
+        monkeypatch.setattr(build, "_build_mesh", _raise_after(build._build_mesh))
     with pytest.raises(RuntimeError, match="injected failure"):
-        scene_build.build_tree(bpy.context, tree, "Tree")
+        build.build_tree(bpy.context, tree, "Tree")
     assert _ids() == before
     assert bpy.context.mode == "OBJECT"
     assert (scene.render.fps, scene.frame_start, scene.frame_end) == (50, 1, 77)   # scene settings kept
 
 
 def test_existing_collection_is_replaced_only_when_asked(tree, monkeypatch):
-    first = scene_build.build_tree(bpy.context, tree, "Tree")
+    first = build.build_tree(bpy.context, tree, "Tree")
     assert first["armature"].animation_data.action.frame_range[1] == 60
     after_first = _ids()
     with pytest.raises(InputError, match="'Tree' already exists"):
-        scene_build.build_tree(bpy.context, tree, "Tree")
+        build.build_tree(bpy.context, tree, "Tree")
     assert _ids() == after_first
 
     short = Tree3D(tree.parents, tree.nodes3d[:30], tree.radius, tree.level, tree.fps)
     # a replacement that fails at the last step leaves the old tree as it was
     def boom(collection):
         raise RuntimeError("boom")
-    monkeypatch.setattr(scene_build, "remove_collection", boom)
+    monkeypatch.setattr(build, "remove_collection", boom)
     with pytest.raises(RuntimeError, match="boom"):
-        scene_build.build_tree(bpy.context, short, "Tree", replace=True)
+        build.build_tree(bpy.context, short, "Tree", replace=True)
     assert _ids() == after_first
     monkeypatch.undo()
 
-    res = scene_build.build_tree(bpy.context, short, "Tree", replace=True)
+    res = build.build_tree(bpy.context, short, "Tree", replace=True)
     assert _ids() == after_first                      # same names: old data gone, new data renamed
     assert res["armature"].name == "Tree Rig" and res["mesh"].name == "Tree Branches"
     assert res["armature"].animation_data.action.frame_range[1] == 30
@@ -275,11 +275,11 @@ def test_existing_collection_is_replaced_only_when_asked(tree, monkeypatch):
 def test_bad_inputs_are_refused_before_building(tree):
     before = _ids()
     with pytest.raises(InputError, match="frame rate"):
-        scene_build.build_tree(bpy.context, Tree3D(tree.parents, tree.nodes3d, tree.radius, tree.level, 0.0), "T")
+        build.build_tree(bpy.context, Tree3D(tree.parents, tree.nodes3d, tree.radius, tree.level, 0.0), "T")
     with pytest.raises(InputError, match="sides"):
-        scene_build.build_tree(bpy.context, tree, "T", sides=2)
+        build.build_tree(bpy.context, tree, "T", sides=2)
     with pytest.raises(InputError, match="collection name"):
-        scene_build.build_tree(bpy.context, tree, "")
+        build.build_tree(bpy.context, tree, "")
     assert _ids() == before
 
 
@@ -287,7 +287,7 @@ def test_bad_inputs_are_refused_before_building(tree):
 
 def test_timing_127_bones_300_frames_and_full_sample():
     small = binary_tree(n_bones=127, frames=300)
-    res = scene_build.build_tree(bpy.context, small, "Binary")
+    res = build.build_tree(bpy.context, small, "Binary")
     t = res["timings"]
     print(f"\n127 bones x 300 frames: rotations {t['rotations']:.3f} s, keys {t['keys']:.3f} s, "
           f"armature {t['armature']:.3f} s, mesh {t['mesh']:.3f} s, total {t['total']:.3f} s")
@@ -296,7 +296,7 @@ def test_timing_127_bones_300_frames_and_full_sample():
     # target 0.2 s; the bound leaves room for a loaded 2-core machine but not for per-key Python
     assert t["rotations"] + t["keys"] < 0.8
     full = broad_tree(None)
-    res = scene_build.build_tree(bpy.context, full, "Broad")
+    res = build.build_tree(bpy.context, full, "Broad")
     t = res["timings"]
     print(f"broad sample 234 bones x 180 frames: rotations {t['rotations']:.3f} s, keys {t['keys']:.3f} s, "
           f"armature {t['armature']:.3f} s, mesh {t['mesh']:.3f} s, total {t['total']:.3f} s")
@@ -315,7 +315,7 @@ def test_solver_output_builds_and_poses_exactly():
     res = pipeline.run(os.path.join(folder, "video.mp4"), os.path.join(folder, "outline.json"),
                        plain_settings(frames="0:30"))
     tree = pipeline.build_3d(res, plain_settings(frames="0:30"), name="Solved")
-    built = scene_build.build_tree(bpy.context, tree, "Solved", leaves=False)   # leaves: test_leaves_scene
+    built = build.build_tree(bpy.context, tree, "Solved", leaves=False)   # leaves: test_leaves_scene
     rig = built["armature"]
     names = bones.bone_names(tree.parents)
     assert len(rig.data.bones) == len(res.skeleton.edges()) == tree.n_nodes - 1

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from groundtruth import true_labels
 from tree_from_video.core import pipeline
-from tree_from_video.operators import scene_build
+from tree_from_video.operators.scene import build
 from tree_from_video.sample_videos import synth_tree
 from trees import empty_scene  # noqa: F401  (autouse fixture)
 
@@ -61,7 +61,7 @@ def test_rendered_silhouette_overlaps_the_video_tree(runs, variant, tmp_path):
     res = runs[variant]["traced"]
     s = pipeline.Settings()          # the product's defaults: twigs 2, curliness 0.3, rough bark
     tree = pipeline.build_3d(res, s, name="Sil")
-    built = scene_build.build_tree(bpy.context, tree, "Sil")
+    built = build.build_tree(bpy.context, tree, "Sil")
     sil = render_silhouette(tree, str(tmp_path / "sil.png"))
     truth = true_mask(variant)
     assert sil.shape == truth.shape

@@ -270,10 +270,10 @@ def twiggy():
 def test_fbx_with_twigs_reimports_their_bones_animated(blender, twiggy, tmp_path):
     """FBX stores joints, not tails: a re-imported bone without children gets a guessed length, so
     heads and directions are compared (generation-2 heads are generation-1 tails)."""
-    from tree_from_video.operators import export, scene_build
+    from tree_from_video.operators.scene import build, export
     from trees import expected, pose_heads_dirs, tree_height
     tree, N = twiggy
-    built = scene_build.build_tree(blender.context, tree, "Tree", curliness=0.5, bark="rough")
+    built = build.build_tree(blender.context, tree, "Tree", curliness=0.5, bark="rough")
     path = export.export_fbx(tmp_path / "tree.fbx", [built["armature"], built["mesh"]])
     blender.ops.wm.read_factory_settings(use_empty=True)
     blender.ops.import_scene.fbx(filepath=str(path), anim_offset=0)
@@ -300,9 +300,9 @@ def test_fbx_with_twigs_reimports_their_bones_animated(blender, twiggy, tmp_path
 
 def test_gltf_with_twigs_has_their_joints_and_rotation_keys(blender, twiggy, tmp_path):
     from test_exports import accessor, read_glb
-    from tree_from_video.operators import export, scene_build
+    from tree_from_video.operators.scene import build, export
     tree, N = twiggy
-    built = scene_build.build_tree(blender.context, tree, "Tree")
+    built = build.build_tree(blender.context, tree, "Tree")
     path = export.export_gltf(tmp_path / "tree.glb", [built["armature"], built["mesh"]])
     doc, binary = read_glb(path)
     joints = doc["skins"][0]["joints"]

@@ -95,7 +95,7 @@ class TREE_PT_outline(_TreePanel, bpy.types.Panel):
         elif props.outline_source == "AUTO":
             col.label(text="Found from motion; check it with Track & Preview", icon="INFO")
         elif props.outline_source == "ANNOTATION":
-            from ..operators import annotation
+            from ..operators.scene import annotation
             col.operator("tree_video.open_clip", icon="TRACKER")
             hint = col.column(align=True)
             hint.label(text="Draw around the tree on frame 1:", icon="GREASEPENCIL")

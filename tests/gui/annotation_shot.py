@@ -37,7 +37,7 @@ def open_clip():
         print("open_clip:", bpy.ops.tree_video.open_clip(), flush=True)
     space = area.spaces.active
     print(f"clip editor mode {space.mode}, toolbar shown {space.show_region_toolbar}", flush=True)
-    print("status before drawing:", __import__("tree_from_video").operators.annotation.status(props.video_path),
+    print("status before drawing:", __import__("tree_from_video").operators.scene.annotation.status(props.video_path),
           flush=True)
     region = next(r for r in area.regions if r.type == "WINDOW")
     with bpy.context.temp_override(area=area, region=region):
@@ -49,7 +49,7 @@ def draw():
     with open(os.path.join(ROOT, "sample_videos", "broad", "outline.json")) as f:
         poly = json.load(f)["polygon"]
     print("annotate:", _draw(_dense(poly), 480, 360), flush=True)
-    from tree_from_video.operators import annotation
+    from tree_from_video.operators.scene import annotation
     print("status after drawing:", annotation.status(props.video_path), flush=True)
     props.use_frame_range, props.frame_start, props.frame_end = True, 0, 30
     print("preview:", bpy.ops.tree_video.preview("EXEC_DEFAULT"), flush=True)

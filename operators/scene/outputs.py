@@ -12,11 +12,11 @@ import tempfile
 import bpy
 import numpy as np
 
-from ..core.errors import InputError
-from ..core.fileio import publish, temp_path
-from ..core.tree3d import Tree3D
+from ...core.errors import InputError
+from ...core.fileio import publish, temp_path
+from ...core.tree3d import Tree3D
 from . import export
-from .scene_build import build_tree
+from .build import build_tree
 
 FORMATS = {"fbx": "tree.fbx", "usd": "tree.usdc", "gltf": "tree.glb", "blend": "tree.blend",
            "preview": "preview.png"}

@@ -15,9 +15,9 @@ from typing import Iterable
 
 import bpy
 
-from ..core.errors import InputError
+from ...core.errors import InputError
 from .action_api import action_fcurves
-from .scene_build import deselect_all, set_frame_range
+from .build import deselect_all, set_frame_range
 
 
 class ExportError(RuntimeError):

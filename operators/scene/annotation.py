@@ -17,7 +17,7 @@ import os
 import bpy
 import numpy as np
 
-from ..core.errors import InputError
+from ...core.errors import InputError
 
 DRAW = ("draw a closed line around the whole tree in the Movie Clip editor (toolbar › Annotation › Draw, "
         "or hold D and drag)")

@@ -12,12 +12,13 @@ import time
 import bpy
 import numpy as np
 
-from ..core import bones
-from ..core.detail import branch_mesh as bm
-from ..core.detail.branch_mesh import branch_radii, tube_arrays
-from ..core.errors import InputError
-from ..core.tree3d import Tree3D
-from . import action_api, leaves_build
+from ...core import bones
+from ...core.detail import branch_mesh as bm
+from ...core.detail.branch_mesh import branch_radii, tube_arrays
+from ...core.errors import InputError
+from ...core.tree3d import Tree3D
+from . import action_api
+from . import leaves as leaf_build          # build_tree has a parameter "leaves"
 
 #: Blender's longest ID name (bytes).
 MAX_NAME = 63
@@ -76,7 +77,7 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
         t = time.perf_counter()
         rig, rest, leaf_names = _build_armature(
             context, tree, coll, names["rig"], created,
-            (lambda data: leaves_build.add_leaf_edit_bones(data, tree)) if with_leaves else None)
+            (lambda data: leaf_build.add_leaf_edit_bones(data, tree)) if with_leaves else None)
         timings["armature"] = time.perf_counter() - t
 
         t = time.perf_counter()
@@ -85,7 +86,7 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
         t = time.perf_counter()
         action, make_fcurve = _key_pose(rig, local, bones.bone_names(tree.parents), names["action"], created)
         if leaf_names:
-            leaves_build.key_leaf_bones(rig, make_fcurve, tree, leaf_names)
+            leaf_build.key_leaf_bones(rig, make_fcurve, tree, leaf_names)
         timings["keys"] = time.perf_counter() - t
         render = scene.render
         saved = (render.fps, render.fps_base, scene.frame_start, scene.frame_end, scene.frame_current)
@@ -105,11 +106,11 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
             t = time.perf_counter()
             leaf_mat = (materials or {}).get("leaf")
             if leaf_mat is None:
-                leaf_mat = created.add(bpy.data.materials, leaves_build.leaf_material(
-                    names["leaf_material"], leaf_image, leaves_build.leaf_tint(tree.leaves)))
-                for img in leaves_build.material_images(leaf_mat):
+                leaf_mat = created.add(bpy.data.materials, leaf_build.leaf_material(
+                    names["leaf_material"], leaf_image, leaf_build.leaf_tint(tree.leaves)))
+                for img in leaf_build.material_images(leaf_mat):
                     created.add(bpy.data.images, img)
-            leaf_obj = leaves_build.build_leaf_mesh(tree, rig, coll, names["leaves"], leaf_names, leaf_mat, created)
+            leaf_obj = leaf_build.build_leaf_mesh(tree, rig, coll, names["leaves"], leaf_names, leaf_mat, created)
             timings["leaves"] = time.perf_counter() - t
 
         if old is not None:
@@ -153,7 +154,7 @@ def remove_collection(coll: bpy.types.Collection) -> None:
     children = list(coll.children_recursive)
     for ob in objects:
         bpy.data.objects.remove(ob, do_unlink=True)
-    images = {img for m in materials for img in leaves_build.material_images(m)}
+    images = {img for m in materials for img in leaf_build.material_images(m)}
     for ids in (datas, actions, materials, images):
         for id_ in ids:
             if id_.users == 0:

@@ -18,7 +18,7 @@ _data: dict = {}
 
 def store(res) -> None:
     """Keep what to draw from a pipeline result: image-space tracks and skeleton per frame."""
-    from ..core.reconstruct.overlay import to_image
+    from ...core.reconstruct.overlay import to_image
     tr, sk = res.tracks, res.skeleton
     pts = np.stack([to_image(tr.points[t].astype(np.float64), tr.camera[t]) for t in range(tr.n_frames)])
     nodes = np.stack([to_image(sk.nodes2d[t].astype(np.float64), tr.camera[t]) for t in range(tr.n_frames)])

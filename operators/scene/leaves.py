@@ -12,9 +12,9 @@ from __future__ import annotations
 import bpy
 import numpy as np
 
-from ..core import bones
-from ..core.detail.leaf_clusters import flap_weights, leaf_flap_offsets, leaf_mesh
-from ..core.tree3d import Tree3D
+from ...core import bones
+from ...core.detail.leaf_clusters import flap_weights, leaf_flap_offsets, leaf_mesh
+from ...core.tree3d import Tree3D
 from . import action_api
 
 TEXTURE_SIZE = 128
@@ -173,7 +173,7 @@ def leaf_image(name: str, path: str | None, tint=(1.0, 1.0, 1.0)):
     """The leaf texture: the user's image at ``path`` (packed into the .blend), or a procedural
     leaf (:func:`leaf_texture_pixels`). Raises InputError for an image Blender cannot read."""
     if path:
-        from ..core.errors import InputError
+        from ...core.errors import InputError
         try:
             img = bpy.data.images.load(path, check_existing=False)
         except RuntimeError as exc:
@@ -214,7 +214,7 @@ def leaf_material(name: str, image_path: str | None = None, tint=(0.3, 0.5, 0.2)
                 pass
         mat.use_backface_culling = False
         img = leaf_image(name, image_path, tint)
-        from .scene_build import principled_nodes  # scene_build imports this module
+        from .build import principled_nodes  # build imports this module
         nt, out, bsdf = principled_nodes(mat)
         tex = nt.nodes.new("ShaderNodeTexImage")
         tex.image = img
