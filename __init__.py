@@ -13,9 +13,9 @@ _cli_handle = None
 
 def _cli(argv: list[str]) -> int:
     """``blender -c tree_from_video VIDEO --outline ... --out DIR [options]``: the batch job."""
-    from . import batch
+    from . import cli
     try:
-        return batch.main(argv)
+        return cli.main(argv)
     except SystemExit as exc:          # argparse: --help (0) or a usage error (2)
         return int(exc.code or 0)
 

@@ -5,10 +5,13 @@ trees grow into one.
 """
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
+from .meta import EnvelopeMeta
 from .outline import Outline
 
 
@@ -56,13 +59,13 @@ class Envelope:
         return pts[r > 0]
 
 
-def envelope_to_meta(env: Envelope, scale: float) -> dict:
+def envelope_to_meta(env: Envelope, scale: float) -> EnvelopeMeta:
     """Ω as JSON-able lists in metres (``scale`` metres per px), for :attr:`Tree3D.meta`."""
     return {"z": (env.z * scale).round(6).tolist(), "centre": (env.centre * scale).round(6).tolist(),
             "radius": (env.radius * scale).round(6).tolist()}
 
 
-def envelope_from_meta(meta: dict) -> Envelope | None:
+def envelope_from_meta(meta: Mapping[str, Any]) -> Envelope | None:
     """The envelope stored by :func:`envelope_to_meta` in a tree's ``meta["envelope"]`` (metres),
     or None when the tree has none."""
     e = meta.get("envelope")

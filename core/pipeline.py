@@ -32,6 +32,7 @@ from .reconstruct.run import (
 from .reconstruct.run import run as run_2d
 from .reconstruct.tracks import detect_corners
 from .reconstruct.video import iter_frames
+from .meta import TreeMeta
 from .tree3d import Tree3D, image_to_plane, pipe_radii
 
 __all__ = ["SKELETON_KINDS", "Result", "Settings", "add_leaves", "build_3d", "check_settings", "first_frame",
@@ -104,7 +105,7 @@ def build_3d(res: Result, s: Settings | None = None, name: str = "Tree",
         radius = (radius_px * scale).astype(np.float32)
     else:
         radius = pipe_radii(sk.parents, s.tip_radius * s.height_m, s.pipe_exponent)
-    meta = {"height_px": height_px, "metres_per_px": scale, "solver": s.motion.solver,
+    meta: TreeMeta = {"height_px": height_px, "metres_per_px": scale, "solver": s.motion.solver,
             "conifer": s.lift.conifer, "mu_deg": float(np.degrees(lifted.mu)),
             "envelope": envelope_to_meta(lifted.envelope, scale),
             "mesh": {"curliness": float(s.curliness), "bark": s.bark, "seed": int(s.twigs.seed)},

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .fileio import atomic_savez
+from .meta import TreeMeta
 
 FORMAT = "tree_from_video.tree3d"
 VERSION = 1
@@ -76,7 +77,7 @@ class Tree3D:
     level: np.ndarray
     fps: float
     name: str = "Tree"
-    meta: dict = field(default_factory=dict)
+    meta: TreeMeta = field(default_factory=lambda: TreeMeta())   # keys: :mod:`.meta`
     leaves: LeafClusters | None = None
 
     @property

@@ -10,25 +10,14 @@ species.fit_species writes <name>.json.
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import os
 import sys
 import tempfile
 import time
 
-from tree_from_video.core.generate import species
-
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-PACKAGE = "tree_from_video"
-
-
-def _load_package():
-    if PACKAGE not in sys.modules:
-        spec = importlib.util.spec_from_file_location(PACKAGE, os.path.join(ROOT, "__init__.py"),
-                                                      submodule_search_locations=[ROOT])
-        module = importlib.util.module_from_spec(spec)
-        sys.modules[PACKAGE] = module
-        spec.loader.exec_module(module)
+sys.path.insert(0, ROOT)
+from package_loader import load_package  # noqa: E402
 
 
 def main(argv=None) -> int:
@@ -36,7 +25,8 @@ def main(argv=None) -> int:
     ap.add_argument("--out", default=os.path.join(ROOT, "species"))
     ap.add_argument("--work", default=None, help="folder for the generated conifer sample")
     args = ap.parse_args(argv)
-    _load_package()
+    load_package()
+    from tree_from_video.core.generate import species
     sys.path.insert(0, os.path.join(ROOT, "tests"))
     from samples import committed, generate, plain_settings
     from tree_from_video.core import pipeline

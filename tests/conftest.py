@@ -1,17 +1,12 @@
 """Load the repository root as the package ``tree_from_video`` (no Blender needed for core tests)."""
-import importlib.util
 import os
 import sys
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-PACKAGE = "tree_from_video"
+sys.path.insert(0, ROOT)
+from package_loader import load_package  # noqa: E402
 
-if PACKAGE not in sys.modules:
-    spec = importlib.util.spec_from_file_location(PACKAGE, os.path.join(ROOT, "__init__.py"),
-                                                  submodule_search_locations=[ROOT])
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[PACKAGE] = module
-    spec.loader.exec_module(module)
+load_package()
 
 
 # --- shared fixtures: every sample variant generated once per session and run through the core ---

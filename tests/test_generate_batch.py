@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from samples import committed
 from scipy.io import wavfile
-from tree_from_video import batch
+from tree_from_video import cli as batch
 from tree_from_video.core.envelope import envelope_from_meta
 from tree_from_video.core.generate import envelopes
 from tree_from_video.core.tree3d import load_tree

@@ -52,7 +52,8 @@ def random_bark(kind: str, n_terms: int = 4, seed: int = 0) -> tuple[np.ndarray,
     return amp, freqs, rng.uniform(0, 2 * np.pi, n_terms)
 
 
-def flutter(t: np.ndarray, branch_speed: np.ndarray, omega: float, beta: float, gain: float) -> np.ndarray:
+def flutter(t: np.ndarray, branch_speed: np.ndarray, omega: float, beta: float | np.ndarray,
+            gain: float) -> np.ndarray:
     """``y(t) = A(t) sin(ω t + β)`` radians, ``A(t) = gain · |branch speed(t)|`` (Appendix B.2):
     ``t (F,)`` seconds, ``branch_speed (F,)`` in units/s, ``omega`` rad/s, ``beta`` rad."""
     return gain * np.abs(branch_speed) * np.sin(omega * np.asarray(t, float) + beta)

@@ -38,7 +38,9 @@ grows from (bones stay connected); only its orientation lags (inertia) and swing
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -245,7 +247,11 @@ def add_twigs(tree: Tree3D, params: TwigParams | None = None,
     f_lvl = np.asarray(tree.level, np.int64)[tips]
     f_root = tips                                   # the reconstructed tip each twig grows from
 
-    new_parent, new_pos, new_rad, new_lvl, new_root = [], [], [], [], []
+    new_parent: list[np.ndarray] = []
+    new_pos: list[np.ndarray] = []
+    new_rad: list[np.ndarray] = []
+    new_lvl: list[np.ndarray] = []
+    new_root: list[np.ndarray] = []
     per_gen, rejected, shrunk = [], 0, 0
     n_next = N
     budget = int(p.max_nodes)
@@ -283,7 +289,7 @@ def add_twigs(tree: Tree3D, params: TwigParams | None = None,
         report(progress, "twigs", 0.8 * (g + 1) / p.depth)
 
     added = n_next - N
-    meta = dict(tree.meta)
+    meta = tree.meta.copy()
     meta["twigs"] = {"first_node": int(N), "nodes_added": int(added), "per_generation": per_gen,
                      "rejected": rejected, "shrunk": shrunk, "templates": int(tpl.n), "depth": int(p.depth),
                      "seed": int(p.seed), "lag_frames": int(p.lag_frames), "attenuation": float(p.attenuation)}
@@ -322,7 +328,7 @@ def _rest_of(idx: np.ndarray, rest: np.ndarray, new_pos: list) -> np.ndarray:
 TREE_PX_MARGIN = 2
 
 
-def on_tree_pixels(tree_px: np.ndarray, meta: dict):
+def on_tree_pixels(tree_px: np.ndarray, meta: Mapping[str, Any]):
     """``seen(pts (..., 3) metres) -> (...) bool``: the rest-pose point, seen like frame 1 (x right,
     z up from the trunk base ``meta["base_px"]``, ``meta["metres_per_px"]``), falls on the tree's
     pixels ``tree_px (H, W)`` grown by :data:`TREE_PX_MARGIN`; None without the placement."""

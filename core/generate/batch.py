@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
+from ..params import param
 from ..progress import ProgressFn
 
 MAX_TREES = 1000
@@ -40,13 +41,13 @@ class GenerateRequest:
     of each animation (None: the species' source clip); ``height_m`` of the envelope;
     ``leaf_density`` 0 for bare trees."""
 
-    count: int
+    count: int = param(1, 1, MAX_TREES, what="--generate")
     species: str | None = None
     envelope: str | None = None
-    wind: float = 1.0
+    wind: float = param(1.0, 0.0, what="--wind")
     audio: str | None = None
-    seed: int = 0
-    nodes: int = 200
+    seed: int = param(0, 0, what="--seed")
+    nodes: int = param(200, 4, what="--nodes")
     frames_out: int | None = None
     seconds: float | None = None
     height_m: float = 10.0

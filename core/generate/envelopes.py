@@ -21,6 +21,7 @@ import numpy as np
 
 from ..envelope import Envelope, envelope_from_outline
 from ..errors import InputError
+from ..meta import EnvelopeMeta
 from ..outline import Outline
 
 SHAPES = ("triangle", "circle", "pentagon", "heart")
@@ -265,7 +266,7 @@ def envelope_from_image(path: str | os.PathLike, height_m: float) -> ShapeEnvelo
     return env
 
 
-def envelope_meta(env: Envelope) -> dict:
+def envelope_meta(env: Envelope) -> EnvelopeMeta:
     """JSON-able ``{"z", "centre", "radius"}`` metres (as ``envelope.envelope_to_meta``) plus the
     2D ``polygon`` and ``name`` when known."""
     from ..envelope import envelope_to_meta

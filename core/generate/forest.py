@@ -114,7 +114,7 @@ def scatter_on_mesh(n: int, triangles: np.ndarray, min_dist: float, seed: int = 
     cell = float(min_dist)
     keys = np.floor(cand / cell).astype(np.int64)
     grid: dict = {}
-    out = []
+    out: list = []
     off = [(i, j, k) for i in (-1, 0, 1) for j in (-1, 0, 1) for k in (-1, 0, 1)]
     r2 = min_dist * min_dist
     for idx in range(m):

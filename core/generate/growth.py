@@ -45,6 +45,7 @@ from ..progress import ProgressFn, report, sub_progress
 from ..reconstruct.lift import LiftParams, lift
 from ..reconstruct.skeleton2d import Skeleton2D
 from ..topology import branching_level
+from ..meta import TreeMeta
 from ..tree3d import Tree3D, pipe_radii
 from .envelopes import Region2D, envelope_meta, region_of
 from .species import SpeciesModel
@@ -128,7 +129,7 @@ def scale_envelope(env: Envelope, factor: float) -> Envelope:
     out = copy.copy(env)
     out.z, out.centre, out.radius = env.z * factor, env.centre * factor, env.radius * factor
     if getattr(env, "polygon", None) is not None:
-        out.polygon = np.asarray(env.polygon) * factor
+        out.polygon = np.asarray(env.polygon) * factor   # type: ignore[attr-defined]
     return out
 
 
@@ -230,7 +231,7 @@ def grow_2d(model: SpeciesModel, region: Region2D, p: GrowParams, rng: np.random
             valid = region.contains(pts).all(axis=(0, 2))                            # (L,)
             if valid.any():
                 break
-        if not valid.any() or ll.min() < 0.25 * min_len:
+        if valid is None or not valid.any() or ll.min() < 0.25 * min_len:
             # a tip whose sampled fork does not fit gets new samples before it stops: the first
             # fork of a small envelope failing once would otherwise leave a bare pole
             fails[i] = fails.get(i, 0) + 1
@@ -403,7 +404,7 @@ def grow_tree(model: SpeciesModel, envelope: Envelope, params: GrowParams | None
     H = float(max(rest[:, 2].max(), 1e-6))
     radius = pipe_radii(g.parents, p.tip_radius * H, p.pipe_exponent)
     k = RASTER_HEIGHT_PX / max(region.height(), float(g.pos[:, 1].max()), 1e-6)
-    meta = {"species": model.name, "seed": int(p.seed), "generated": True, "envelope": envelope_meta(env),
+    meta: TreeMeta = {"species": model.name, "seed": int(p.seed), "generated": True, "envelope": envelope_meta(env),
             "wind": float(p.wind), "audio": os.fspath(audio) if isinstance(audio, (str, os.PathLike)) else
             (None if audio is None else "envelope"), "stopped": g.stopped, "conifer": bool(conifer),
             "mu_deg": float(np.degrees(lifted.mu)), "height_px": float(H * k), "metres_per_px": float(1.0 / k),

@@ -11,6 +11,7 @@ import math
 import os
 import tempfile
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -179,7 +180,7 @@ def _leaf_info(d) -> dict | None:
     if d is None:
         return None
     colour = [float(c) for c in d["colour"]]
-    info = {"colour": colour, "radius_frac": float(d["radius_frac"]), "cards": int(d["cards"]),
+    info: dict[str, Any] = {"colour": colour, "radius_frac": float(d["radius_frac"]), "cards": int(d["cards"]),
             "per_node": float(d["per_node"])}
     if len(colour) != 3 or not all(0 <= c <= 1 for c in colour) or not 0 < info["radius_frac"] < 1 \
             or not 1 <= info["cards"] <= 256 or not info["per_node"] > 0:

@@ -194,7 +194,7 @@ def lift(skel: Skeleton2D, outline: Outline, params: LiftParams | None = None,
     order = topological_order(parents)
     chain_of = {i: np.flatnonzero((up == up[i]) & ~anchors & (down == i)) for i in np.flatnonzero(pushed)}
 
-    subtree = {}
+    subtree: dict = {}
     for n in order[::-1]:
         subtree[n] = np.concatenate([[n]] + [subtree[c] for c in ch[n]]) if ch[n] else np.array([n])
 

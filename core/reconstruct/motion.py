@@ -33,17 +33,20 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..params import param
 from ..progress import ProgressFn, report
 from ..rotations import rodrigues
 from ..topology import chains, children_lists, topological_order
 
+
+SOLVERS = ("probabilistic", "deterministic")
 
 @dataclass
 class MotionParams:
     """σ and bounds of the probabilistic solver (lengths as shares of the tree height, angles in
     radians). ``solver`` is "probabilistic" (default) or "deterministic"."""
 
-    solver: str = "probabilistic"
+    solver: str = param("probabilistic", choices=SOLVERS, what="solver")
     sigma_track: float = 0.0075         # of the tree height
     sigma_shape: float = 0.02         # radians at level 0 …
     sigma_shape_growth: float = 0.5   # … times (1 + growth · level)
@@ -82,7 +85,7 @@ def _levels(parents: np.ndarray) -> _Levels:
     for n in order:
         if parents[n] >= 0:
             depth[n] = depth[parents[n]] + 1
-    sub = {}
+    sub: dict = {}
     for n in order[::-1]:
         sub[n] = np.concatenate([[n]] + [sub[c] for c in ch[n]]).astype(int) if ch[n] else np.array([n])
     lv = _Levels([], [], [], [], [])
@@ -141,7 +144,7 @@ def solve_motion(rest: np.ndarray, parents: np.ndarray, level: np.ndarray, targe
     (chain nodes' targets are first smoothed, :func:`smooth_chain_targets`). Frame 1 is ``rest``.
     """
     params = params or MotionParams()
-    if params.solver not in ("probabilistic", "deterministic"):
+    if params.solver not in SOLVERS:
         from ..errors import InputError
         raise InputError(f"unknown motion solver '{params.solver}'; use probabilistic or deterministic")
     F, N = targets.shape[:2]

@@ -70,9 +70,11 @@ def write_overlays(info: VideoInfo, start: int, skel: Skeleton2D, tracks: Tracks
                 os.close(fd)
                 writer = cv2.VideoWriter(tmp, cv2.VideoWriter_fourcc(*"mp4v"), info.fps,
                                          (img.shape[1], img.shape[0]))
+            assert writer is not None
             writer.write(img)
             if t % 10 == 0:
                 report(progress, "overlay", t / n)
+        assert writer is not None and tmp is not None and mp4_path is not None
         writer.release()
         writer = None
         publish(tmp, mp4_path)

@@ -116,7 +116,7 @@ def run(video: str, outline_path, settings: ReconstructSettings | None = None,
     else:
         tracks, maps = track_video(info, outline, start, stop, s.track, sub_progress(progress, 0.0, 0.7))
         hier = build_hierarchy(tracks, HierarchyParams(levels=s.levels), sub_progress(progress, 0.7, 0.85))
-        if key is not None:
+        if key is not None and s.cache_dir:
             try:
                 cache.save(s.cache_dir, key, tracks, maps, hier)
             except OSError:

@@ -60,27 +60,27 @@ def binarize(parents: np.ndarray, pos: np.ndarray) -> tuple[np.ndarray, np.ndarr
     quarter of the way toward the nearest of them, repeated until every node has ≤ 2 children.
     Returns new ``(parents, pos)``; original nodes keep their indices, new ones are appended.
     """
-    parents = [int(p) for p in parents]
-    pos = [np.asarray(p, float) for p in pos]
-    ch = children_lists(np.array(parents))
-    stack = list(range(len(parents)))
+    par = [int(p) for p in parents]
+    pts = [np.asarray(p, float) for p in pos]
+    ch = children_lists(np.array(par))
+    stack = list(range(len(par)))
     while stack:
         u = stack.pop()
         kids = ch[u] if u < len(ch) else []
         if len(kids) <= 2:
             continue
-        d = [np.linalg.norm(pos[k] - pos[u]) for k in kids]
+        d = [np.linalg.norm(pts[k] - pts[u]) for k in kids]
         kids = [kids[i] for i in np.argsort(d)]
         keep, rest = kids[0], kids[1:]
-        v = len(parents)
-        parents.append(u)
-        pos.append(pos[u] + 0.25 * (pos[rest[0]] - pos[u]))
+        v = len(par)
+        par.append(u)
+        pts.append(pts[u] + 0.25 * (pts[rest[0]] - pts[u]))
         for k in rest:
-            parents[k] = v
+            par[k] = v
         ch[u] = [keep, v]
         ch.append(rest)
         stack.append(v)
-    return np.array(parents, np.int32), np.array(pos)
+    return np.array(par, np.int32), np.array(pts)
 
 
 def fold(pos: np.ndarray, parents: np.ndarray, level: np.ndarray, alpha: float = FOLD_ALPHA,

@@ -220,8 +220,8 @@ def simplify_tree(parent: dict[int, int], root: int, keep: set[int], width: int,
     while i < len(order):
         order.extend(kids.get(order[i], []))
         i += 1
-    reach = {}
-    has_keep = {}
+    reach: dict = {}
+    has_keep: dict = {}
     for u in reversed(order):
         ch = kids.get(u, [])
         reach[u] = max((reach[c] + np.linalg.norm(xy(c) - xy(u)) for c in ch), default=0.0)
@@ -249,8 +249,8 @@ def meeting_points(hier: Hierarchy, p0: np.ndarray, knn: int = 8) -> dict[int, n
     """Where the two child clusters of every internal cluster meet: the mean of the midpoints of
     kNN edges joining one child's tracks to the other's (px, ``p0 (P, 2)`` frame-1 positions)."""
     from scipy.spatial import cKDTree
-    out = {}
-    ch = {}
+    out: dict = {}
+    ch: dict = {}
     for c, p in enumerate(hier.parent):
         if p >= 0:
             ch.setdefault(int(p), []).append(c)
@@ -269,9 +269,9 @@ def meeting_points(hier: Hierarchy, p0: np.ndarray, knn: int = 8) -> dict[int, n
         sp = np.median(cKDTree(p0[all_idx]).query(p0[all_idx], k=kk)[0][:, -1])
         near = d <= 1.5 * sp
         if not near.any():
-            ia, jb = np.unravel_index(np.argmin(d), d.shape)
+            i0, j0 = np.unravel_index(np.argmin(d), d.shape)
             near = np.zeros_like(d, bool)
-            near[ia, jb] = True
+            near[i0, j0] = True
         ia, kb = np.nonzero(near)
         mids = 0.5 * (p0[a][ia] + p0[b][j[ia, kb]])
         out[c] = mids.mean(0)
@@ -319,7 +319,7 @@ def hierarchy_geometry(hier: Hierarchy, p0: np.ndarray, base: np.ndarray, size: 
     y_top = min(max(place[0, 1], float(np.quantile(p0[:, 1], 0.85))), base[1] - 0.15 * size)
     place[0] = [base[0], y_top]
     parents, pos = [-1], [np.asarray(base, float)]
-    node_of = {}
+    node_of: dict = {}
 
     def chain(a: int, b_xy: np.ndarray) -> int:
         """Append a straight chain from node ``a`` to ``b_xy``; return the last node's index."""

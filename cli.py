@@ -1,0 +1,356 @@
+"""The batch job: video + outline → moving 2D skeleton → animated 3D tree (+ Blender scene, exports),
+and new trees of a species (``--generate``).
+
+    python batch.py VIDEO --outline OUTLINE.json|MASK.png --out DIR [options]
+    python batch.py --generate N --species broad|FILE.json --out DIR [--envelope heart] [options]
+    python batch.py VIDEO --outline ... --generate N --out DIR [options]    # species fitted from the video
+    blender -b --python batch.py -- VIDEO --outline ... --out DIR [options]
+    blender -c tree_from_video VIDEO --outline ... --out DIR [options]      # the installed extension
+
+:func:`main` is what all of them call. Exit codes: 0 success, 2 bad input (one line on stderr
+naming the problem and the fix), 1 internal error. Progress lines go to stderr. Defaults and
+ranges of the options are the core's (:mod:`.core.params`).
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import tempfile
+import time
+import traceback
+from types import SimpleNamespace
+
+from . import __version__
+from .core import pipeline
+from .core.detail.branch_mesh import MeshParams
+from .core.detail.leaf_clusters import LeafParams
+from .core.detail.twigs import TwigParams
+from .core.envelope import envelope_from_meta
+from .core.errors import Cancelled, InputError
+from .core.generate import batch as gb
+from .core.generate import species
+from .core.params import spec
+from .core.reconstruct import overlay, skeleton_io
+from .core.reconstruct.motion import MotionParams
+from .core.reconstruct.run import ReconstructSettings
+from .core.tree3d import save_tree
+from .core.fileio import atomic_savez
+
+
+def _default(cls: type, name: str):
+    return spec(cls, name).default
+
+
+def _range(cls: type, name: str) -> str:
+    return spec(cls, name).describe()
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):  # one line, exit 2
+        sys.stderr.write(f"error: {message}; see --help\n")
+        sys.exit(2)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The batch options; their defaults and ranges come from the core's parameter dataclasses."""
+    R, S, M = ReconstructSettings, pipeline.Settings, MeshParams
+    p = _Parser(prog="batch.py", description="Reconstruct a moving tree skeleton from a video, "
+                "and/or generate new animated trees of a species (--generate).", epilog=GENERATE_HELP,
+                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("video", nargs="?", help="input video file (mp4/mov/avi); optional with --generate --species")
+    p.add_argument("--outline",
+                   help="(required with a VIDEO) tree outline in frame 1: JSON list of [x, y] pixel points, a mask "
+                        "image (white = tree), or 'auto' (what sways in the first seconds)")
+    p.add_argument("--out", required=True, help="output folder (created if missing)")
+    p.add_argument("--npz", action="store_true",
+                   help="also write DIR/result.npz: parents (N,), nodes2d (F, N, 2) px, nodes3d (F, N, 3) m, "
+                        "level (N,), fps")
+    p.add_argument("--levels", type=int, default=_default(R, "levels"),
+                   help=f"hierarchy levels incl. the root, {_range(R, 'levels')} (default %(default)s; paper: 5-7)")
+    p.add_argument("--frames", default=None, metavar="A:B",
+                   help="frame range, 0-based, B exclusive; either side may be empty (default: all)")
+    p.add_argument("--skeleton", choices=spec(R, "skeleton").choices, default=_default(R, "skeleton"),
+                   help="traced: branches traced in the video (default); paper: cluster centroids folded toward "
+                        "parents")
+    p.add_argument("--scale", type=float, default=_default(R, "scale"),
+                   help=f"downscale the video by this factor, {_range(R, 'scale')}, for speed (default %(default)s)")
+    p.add_argument("--conifer", action="store_true",
+                   help="conifer: keep the straight central leader fixed in the 3D lift")
+    p.add_argument("--solver", choices=spec(MotionParams, "solver").choices, default=_default(MotionParams, "solver"),
+                   help="3D motion solver (default probabilistic, paper §4; deterministic: sphere/line-of-sight "
+                        "baseline)")
+    p.add_argument("--height", type=float, default=_default(S, "height_m"),
+                   help="tree height in the scene, metres (default %(default)s)")
+    p.add_argument("--twigs", type=int, default=_default(TwigParams, "depth"), metavar="DEPTH",
+                   help=f"generations of twigs copied from the tree's own forks, {_range(TwigParams, 'depth')} "
+                        "(default %(default)s; 0: none)")
+    p.add_argument("--no-branch-fit", action="store_true",
+                   help="pipe-model radii where they are traced, instead of widths and centre lines measured in "
+                        "frame 1")
+    p.add_argument("--curliness", type=float, default=_default(M, "curliness"),
+                   help=f"bend the branch tubes along minimum-jerk curves, {_range(M, 'curliness')} "
+                        "(default %(default)s; 0: straight)")
+    p.add_argument("--bark", choices=spec(M, "bark").choices, default=_default(M, "bark"),
+                   help="bark relief on the tubes: smooth (<= 0.5%% of the radius) or rough (1-5%%) "
+                        "(default %(default)s)")
+    p.add_argument("--no-leaves", action="store_true", help="bare branches: no leaf clusters")
+    p.add_argument("--leaf-density", type=float, default=_default(LeafParams, "density"),
+                   help=f"share of the leaf seeds kept, {_range(LeafParams, 'density')} (default %(default)s): "
+                        "fewer, larger clusters, fewer polygons")
+    p.add_argument("--leaf-cards", type=int, default=_default(LeafParams, "cards"),
+                   help=f"leaf cards (quads) per cluster, {_range(LeafParams, 'cards')} (default %(default)s)")
+    p.add_argument("--flutter-hz", type=float, default=_default(LeafParams, "flutter_hz"),
+                   help="leaf flutter frequency in Hz (default %(default)s)")
+    p.add_argument("--leaf-image", help="image of one leaf (alpha = shape) instead of the procedural leaf")
+    p.add_argument("--fbx", action="store_true", help="write DIR/tree.fbx (armature + skinned mesh, baked animation)")
+    p.add_argument("--usd", action="store_true", help="write DIR/tree.usdc (needs a Blender built with USD)")
+    p.add_argument("--gltf", action="store_true", help="write DIR/tree.glb (glTF binary, animation from t = 0)")
+    p.add_argument("--blend", action="store_true", help="write DIR/tree.blend (the scene with the animated tree)")
+    p.add_argument("--preview", action="store_true", help="write DIR/preview.png (front and side renders of frame 1)")
+    p.add_argument("--no-video", action="store_true", help="skip overlay.mp4 (overlay.png is still written)")
+    p.add_argument("--force", action="store_true", help="overwrite existing output files in DIR")
+    p.add_argument("--quiet", action="store_true", help="no progress lines")
+    G = gb.GenerateRequest
+    g = p.add_argument_group("generation (--generate; see below)")
+    g.add_argument("--generate", type=int, metavar="N",
+                   help=f"write N new animated trees ({_range(G, 'count')}) to DIR/tree_000/ ...")
+    g.add_argument("--species", help="species to grow without a video: broad, sparse, conifer (shipped) or a "
+                                     "species .json file (with a VIDEO the species is fitted from its tree)")
+    g.add_argument("--envelope", help="shape the trees fill: triangle, circle, pentagon, heart or a silhouette image "
+                                      "(default: the video's outline; without a video circle, triangle for conifers)")
+    g.add_argument("--wind", type=float, default=_default(G, "wind"),
+                   help="sway strength (default %(default)s = as in the example; 2 = twice)")
+    g.add_argument("--audio", metavar="WAV", help="WAV recording whose loudness drives the sway over time (gusts)")
+    g.add_argument("--seed", type=int, default=_default(G, "seed"),
+                   help="random seed; tree i uses seed + i (default %(default)s)")
+    g.add_argument("--nodes", type=int, default=_default(G, "nodes"),
+                   help="node budget per tree (default %(default)s)")
+    g.add_argument("--frames-out", type=int, metavar="F",
+                   help="frames of each generated animation (default: the species' source clip)")
+    g.add_argument("--seconds", type=float,
+                   help="length of each generated animation in seconds (instead of --frames-out)")
+    return p
+
+
+GENERATE_HELP = """generation:
+  --generate N writes DIR/generated.json (settings; per tree seed, species, envelope, bones,
+  leaf clusters, files) and one folder per tree, DIR/tree_000/ ... DIR/tree_<N-1>/, each with
+  tree3d.npz and the files asked for by --fbx/--usd/--gltf/--blend/--preview (tree.fbx, ...).
+  With a VIDEO the reconstruction's files go to DIR as usual (without exports), plus
+  DIR/species.json (the species fitted from the reconstructed tree). --height is the envelope's
+  height in metres; --no-leaves/--leaf-density/--leaf-image apply to the generated trees."""
+
+
+def _progress_printer(quiet: bool):
+    last = {"stage": None, "t": 0.0}
+
+    def cb(stage: str, frac: float):
+        now = time.monotonic()
+        if quiet or (stage == last["stage"] and now - last["t"] < 1.0 and frac < 1.0):
+            return None
+        last.update(stage=stage, t=now)
+        sys.stderr.write(f"[{stage}] {100 * frac:3.0f}%\n")
+        return None
+    return cb
+
+
+def _check_out(out: str, names: list[str], force: bool) -> None:
+    """Refuse, before any work, an output folder that is a file, cannot be created or written, or
+    holds one of ``names`` (without ``force``)."""
+    if os.path.exists(out) and not os.path.isdir(out):
+        raise InputError(f"--out '{out}' is a file; give a folder")
+    parent = os.path.abspath(out)
+    while not os.path.exists(parent):
+        parent = os.path.dirname(parent)
+    if not os.path.isdir(parent) or not os.access(parent, os.W_OK):
+        raise InputError(f"output folder '{out}' is not writable; choose another --out")
+    try:                     # as root os.access says yes where makedirs fails (/proc, a read-only mount)
+        os.rmdir(tempfile.mkdtemp(prefix=".tfv-probe-", dir=parent))
+    except OSError as exc:
+        raise InputError(f"output folder '{out}' cannot be created ({exc.strerror}); choose another --out") from None
+    existing = [n for n in names if os.path.exists(os.path.join(out, n))]
+    if existing and not force:
+        raise InputError(f"{os.path.join(out, existing[0])} exists; pass --force to overwrite or choose another --out")
+
+
+def _blender_outputs():
+    """The bpy side (batch outputs and preview renders), or a clear error when this Python has no
+    Blender."""
+    try:
+        import bpy  # noqa: F401
+    except ImportError:
+        raise InputError("--fbx/--usd/--gltf/--blend/--preview need Blender's Python: run with the "
+                         "project's venv (make setup) or as blender -b --python batch.py -- ...") from None
+    from .operators.scene import outputs
+    return outputs
+
+
+EXPORT_FILES = (("fbx", "tree.fbx"), ("usd", "tree.usdc"), ("gltf", "tree.glb"), ("blend", "tree.blend"),
+                ("preview", "preview.png"))
+
+
+def _wanted(args) -> tuple[dict, list[str]]:
+    """({format: bool}, file names) of the Blender exports asked for."""
+    wanted = {k: bool(getattr(args, k)) for k, _ in EXPORT_FILES}
+    return wanted, [n for k, n in EXPORT_FILES if wanted[k]]
+
+
+def _check_leaf_image(path: str | None) -> None:
+    if path and not os.path.isfile(path):
+        raise InputError(f"leaf image '{path}' does not exist; give an image file or drop "
+                         "--leaf-image for the procedural leaf")
+
+
+def _plan_generation(args):
+    """Check every --generate input before any work (:mod:`.core.generate.batch`): the request, the
+    species (mode without a video), the envelope, the audio. None without --generate."""
+    if args.generate is None:
+        if args.video is None:
+            raise InputError("no VIDEO given: give VIDEO --outline OUTLINE.json, or --generate N --species NAME "
+                             "to grow new trees")
+        for opt in ("species", "envelope", "audio", "frames_out", "seconds"):
+            if getattr(args, opt) is not None:
+                raise InputError(f"--{opt.replace('_', '-')} only applies with --generate N; add it or drop the option")
+        return None
+    req = gb.GenerateRequest(count=args.generate, species=args.species, envelope=args.envelope, wind=args.wind,
+                             audio=args.audio, seed=args.seed, nodes=args.nodes, frames_out=args.frames_out,
+                             seconds=args.seconds, height_m=args.height,
+                             leaf_density=0.0 if args.no_leaves else args.leaf_density)
+    gb.check_request(req, has_video=args.video is not None)
+    plan = SimpleNamespace(req=req, model=None, species_label=None, envelope=None, envelope_label=None)
+    if req.species is not None:
+        plan.model, plan.species_label = gb.load_species_spec(req.species)
+    spec_ = req.envelope or (gb.default_envelope(plan.model) if plan.model is not None else None)
+    if spec_ is not None:
+        plan.envelope, plan.envelope_label = gb.make_envelope(spec_, req.height_m)
+    if req.audio is not None:
+        gb.check_audio(req.audio)
+    _check_leaf_image(args.leaf_image)
+    return plan
+
+
+def _run_generation(args, plan, outputs, wanted) -> int:
+    """Grow and write the trees of ``plan`` (its model and envelope set) into ``args.out``."""
+    log = (lambda m: None) if args.quiet else (lambda m: sys.stderr.write(m + "\n"))
+    write = None
+    if outputs is not None:
+        def write(tree, folder):
+            tree.meta["mesh"] = {"curliness": float(args.curliness), "bark": args.bark,     # the branch mesh's look
+                                 "seed": int(tree.meta.get("seed", 0))}
+            return outputs.write_outputs(tree, folder, wanted, overwrite=args.force, fresh_scene=True,
+                                         report=log, leaf_image=args.leaf_image)
+    t0 = time.monotonic()
+    entries = gb.generate_trees(plan.model, plan.species_label, plan.envelope, plan.envelope_label, plan.req,
+                                args.out, write, _progress_printer(args.quiet), log)
+    bones = [e["bones"] for e in entries]
+    sys.stderr.write(f"done: {len(entries)} tree(s) of {plan.species_label} in {plan.envelope_label}, "
+                     f"{min(bones)}-{max(bones)} bones, {entries[0]['frames']} frames, "
+                     f"{time.monotonic() - t0:.1f} s -> {os.path.join(args.out, gb.INDEX)}\n")
+    return 0
+
+
+def _generate_only(args, plan) -> int:
+    """``--generate N --species S`` without a video."""
+    wanted, files = _wanted(args)
+    _check_out(args.out, gb.planned_files(plan.req, files), args.force)
+    outputs = _blender_outputs() if files else None
+    if outputs is not None:
+        outputs.check_wanted(wanted)
+    os.makedirs(args.out, exist_ok=True)
+    return _run_generation(args, plan, outputs, wanted)
+
+
+def _generate_from_tree(args, plan, tree, name, outputs, wanted) -> int:
+    """``VIDEO --generate N``: fit the species of the reconstructed ``tree``, save DIR/species.json,
+    grow the trees (default envelope: the reconstruction's)."""
+    plan.model = species.fit_species(gb.without_twigs(tree), name)
+    plan.species_label = os.path.join(args.out, gb.SPECIES_FILE)
+    species.save_species(plan.species_label, plan.model)
+    if not args.quiet:
+        sys.stderr.write(f"[species] {plan.species_label}\n")
+    if plan.envelope is None:
+        plan.envelope, plan.envelope_label = envelope_from_meta(tree.meta), "reconstruction"
+    return _run_generation(args, plan, outputs, wanted)
+
+
+def settings_from_args(args) -> pipeline.Settings:
+    """The :class:`~.core.pipeline.Settings` of a reconstruction asked for by ``args``."""
+    s = pipeline.Settings(levels=args.levels, skeleton=args.skeleton, frames=args.frames, scale=args.scale,
+                          height_m=args.height)
+    s.lift.conifer = args.conifer
+    s.motion.solver = args.solver
+    s.twigs.depth = args.twigs
+    s.fit_branches = not args.no_branch_fit
+    s.curliness, s.bark = args.curliness, args.bark
+    if args.no_leaves:
+        s.leaves = None
+    else:
+        assert s.leaves is not None
+        s.leaves.density, s.leaves.cards = args.leaf_density, args.leaf_cards
+        s.leaves.flutter_hz = args.flutter_hz
+    return s
+
+
+def _reconstruct(args, gen) -> int:
+    """``VIDEO --outline ... --out DIR``: the reconstruction, its files and (with --generate) the trees."""
+    if not args.outline:
+        raise InputError("give the tree's outline in frame 1 with --outline OUTLINE.json|MASK.png|auto")
+    wanted, blender_files = _wanted(args)
+    names = ["skeleton.npz", "tree3d.npz", "overlay.png"] + ([] if args.no_video else ["overlay.mp4"]) \
+        + (["result.npz"] if args.npz else []) \
+        + (blender_files if gen is None else gb.planned_files(gen.req, blender_files, with_species=True))
+    settings = settings_from_args(args)
+    _check_leaf_image(args.leaf_image)
+    pipeline.check_settings(settings)
+    _check_out(args.out, names, args.force)
+    outputs = _blender_outputs() if blender_files else None
+    if outputs is not None:
+        outputs.check_wanted(wanted)
+    cb = _progress_printer(args.quiet)
+    res = pipeline.run(args.video, args.outline, settings, cb)
+    os.makedirs(args.out, exist_ok=True)
+    for w in res.warnings:
+        sys.stderr.write(f"warning: {w}\n")
+    meta = {"video": os.path.abspath(args.video), "frames": [res.start, res.stop],
+            "levels": args.levels, "scale": args.scale, "version": __version__}
+    skeleton_io.save_skeleton(os.path.join(args.out, "skeleton.npz"), res.skeleton, meta)
+    name = os.path.splitext(os.path.basename(args.video))[0] or "Tree"
+    tree = pipeline.build_3d(res, settings, name=f"Tree {name}", progress=cb)
+    tree.meta.update(meta)
+    save_tree(os.path.join(args.out, "tree3d.npz"), tree)
+    if args.npz:
+        arrays = skeleton_io.skeleton_arrays(res.skeleton, meta)
+        arrays["nodes3d"] = tree.nodes3d[:, :res.skeleton.n_nodes]     # twigs are appended after
+        atomic_savez(os.path.join(args.out, "result.npz"), **arrays)
+    overlay.write_overlays(res.info, res.start, res.skeleton, res.tracks,
+                           os.path.join(args.out, "overlay.png"),
+                           None if args.no_video else os.path.join(args.out, "overlay.mp4"), cb)
+    if outputs is not None and gen is None:          # with --generate the exports are per generated tree
+        outputs.write_outputs(tree, args.out, wanted, overwrite=args.force, leaf_image=args.leaf_image,
+                              report=lambda m: sys.stderr.write(m + "\n"))
+    sys.stderr.write(f"done: {res.skeleton.n_nodes} nodes, {res.tracks.points.shape[1]} tracks, "
+                     f"{res.tracks.n_frames} frames -> {args.out}\n")
+    if gen is not None:
+        return _generate_from_tree(args, gen, tree, name, outputs, wanted)
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the batch job on ``argv``; returns the exit code (argparse errors exit 2 via SystemExit)."""
+    args = build_parser().parse_args(argv)
+    try:
+        gen = _plan_generation(args)        # None without --generate
+        if args.video is None:
+            return _generate_only(args, gen)
+        return _reconstruct(args, gen)
+    except InputError as exc:
+        sys.stderr.write(f"error: {exc}\n")
+        return 2
+    except Cancelled as exc:
+        sys.stderr.write(f"cancelled: {exc}\n")
+        return 1
+    except Exception:  # internal error: keep the traceback for the bug report
+        traceback.print_exc()
+        sys.stderr.write("internal error: please report it with the traceback above\n")
+        return 1
