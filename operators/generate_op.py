@@ -20,13 +20,9 @@ from ..core.generate import envelopes, forest, growth, species
 from ..core.job import Job
 from ..core.progress import sub_progress
 from . import jobs, reconstruct_op
-from .scene.build import (
-    _set_scene_timing,
-    build_tree,
-    deselect_all,
-    evaluated_world_mesh,
-    remove_collection,
-)
+from .scene.build import build_tree
+from .scene.objects import deselect_all, evaluated_world_mesh, remove_collection
+from .scene.timing import set_scene_timing
 
 #: seconds of building per timer tick while a forest is built
 BUILD_SLICE_S = 0.15
@@ -318,7 +314,7 @@ class _ForestBuild:
         if self.finished:
             deselect_all(context.view_layer)              # the forest is many objects: select none
             scene = context.scene
-            _set_scene_timing(scene, self.trees[0].fps, max(t.n_frames for t in self.trees))
+            set_scene_timing(scene, self.trees[0].fps, max(t.n_frames for t in self.trees))
             scene.frame_set(scene.frame_start)
         self.elapsed += time.perf_counter() - t0
 

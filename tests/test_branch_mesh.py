@@ -10,7 +10,8 @@ from tree_from_video.core import bones
 from tree_from_video.core.detail import branch_mesh as bm
 from tree_from_video.core.detail.shapes import BARK_PRESETS
 from tree_from_video.core.errors import InputError
-from tree_from_video.operators.scene import build
+from tree_from_video.operators.scene import branch_mesh as scene_mesh
+from tree_from_video.operators.scene import build, materials
 from trees import (
     assert_closed_tubes,
     binary_tree,
@@ -234,9 +235,9 @@ def _rest(rig, tree):
 def test_mesh_settings_come_from_the_tree_meta(tree):
     t = broad_tree(5)
     t.meta["mesh"] = {"curliness": 0.4, "bark": "smooth", "seed": 2}
-    p = build.mesh_params(t)
+    p = scene_mesh.mesh_params(t)
     assert (p.curliness, p.bark, p.seed) == (0.4, "smooth", 2)
-    p = build.mesh_params(t, curliness=0.0, bark="none")
+    p = scene_mesh.mesh_params(t, curliness=0.0, bark="none")
     assert (p.curliness, p.bark) == (0.0, "none")
     res = build.build_tree(bpy.context, t, "T")
     assert len(res["mesh"].data.vertices) == bm.CURLY_RINGS * 8 * len(t.edges())
@@ -270,7 +271,7 @@ def test_timing_and_triangles_of_a_400_bone_tree():
 
 @pytest.mark.parametrize("kind", ["none", "smooth", "rough"])
 def test_bark_material_is_procedural_and_uv_mapped(kind):
-    mat = build.bark_material("Bark", kind)
+    mat = materials.bark_material("Bark", kind)
     nodes = {n.type for n in mat.node_tree.nodes}
     assert {"TEX_NOISE", "TEX_VORONOI", "BUMP", "BSDF_PRINCIPLED", "OUTPUT_MATERIAL"} <= nodes
     assert ("TEX_WAVE" in nodes) == (kind != "none")                  # furrows along the branch
@@ -278,4 +279,4 @@ def test_bark_material_is_procedural_and_uv_mapped(kind):
     assert ("TEX_COORD", "UV", "MAPPING") in links                    # follows the mesh's UVs
     bump = next(n for n in mat.node_tree.nodes if n.type == "BUMP")
     assert bump.inputs["Height"].is_linked
-    assert bump.inputs["Strength"].default_value == pytest.approx(build.BARK_LOOK[kind][0])
+    assert bump.inputs["Strength"].default_value == pytest.approx(materials.BARK_LOOK[kind][0])

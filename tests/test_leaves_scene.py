@@ -9,7 +9,7 @@ import pytest
 from samples import plain_settings
 from tree_from_video.core import pipeline
 from tree_from_video.core.detail import leaf_clusters
-from tree_from_video.operators.scene import action_api, build, export, leaves
+from tree_from_video.operators.scene import action_api, build, export, leaves, materials
 from trees import (
     ROOT,
     empty_scene,  # noqa: F401  (autouse fixture)
@@ -204,7 +204,7 @@ def test_a_users_leaf_image_is_packed_and_a_bad_one_is_refused(tree, tmp_path):
     cv2.imwrite(str(good), img)
     built = build.build_tree(bpy.context, tree, "Leafy", leaf_image=str(good))
     mat = built["leaves"].data.materials[0]
-    images = leaves.material_images(mat)
+    images = materials.material_images(mat)
     assert len(images) == 1 and tuple(images[0].size) == (16, 32) and images[0].packed_file is not None
     bpy.ops.wm.read_factory_settings(use_empty=True)
     bad = tmp_path / "leaf.png.txt"

@@ -6,9 +6,10 @@ import bpy
 import numpy as np
 import pytest
 from tree_from_video.core import bones, rotations
+from tree_from_video.core.detail.branch_mesh import branch_radii
 from tree_from_video.core.errors import InputError
 from tree_from_video.core.tree3d import Tree3D
-from tree_from_video.operators.scene import action_api, build
+from tree_from_video.operators.scene import action_api, armature, branch_mesh, build, objects
 from trees import (
     assert_closed_tubes,
     binary_tree,
@@ -189,13 +190,13 @@ def test_evaluated_mesh_follows_the_bones(tree):
     assert ob.data.materials[0] == res["material"] and res["material"].node_tree is not None
     v = ob.data.vertices[2 * sides * 5 + 3]
     assert [(ob.vertex_groups[g.group].name, g.weight) for g in v.groups] == [(f"B{tree.edges()[5, 1]:03d}", 1.0)]
-    r_head, r_tail = build.branch_radii(tree.parents, tree.radius)
+    r_head, r_tail = branch_radii(tree.parents, tree.radius)
     reach = 1.5 * np.maximum(r_head, r_tail) + 1e-4                 # ring radius, head overlap
     vert_bone = np.repeat(np.arange(B), 2 * sides)
     positions = {}
     for k in (1, 30, 60):
         bpy.context.scene.frame_set(k)
-        co, _ = build.evaluated_world_mesh(ob)
+        co, _ = objects.evaluated_world_mesh(ob)
         heads, tails, _ = expected(tree, k)
         d = _segment_distance(co, heads[vert_bone], tails[vert_bone])
         assert (d <= reach[vert_bone]).all(), f"frame {k}: a vertex is {d.max():.3f} m from its bone"
@@ -227,7 +228,7 @@ def test_failure_mid_build_leaves_nothing(tree, monkeypatch, where):
     scene = bpy.context.scene
     scene.render.fps, scene.frame_end = 50, 77
     if where == "edit_mode":
-        monkeypatch.setattr(build, "_edit_bones", _raise_after(build._edit_bones))
+        monkeypatch.setattr(armature, "_edit_bones", _raise_after(armature._edit_bones))
     elif where == "keys":
         calls = {"n": 0}
         original = action_api.write_keys
@@ -239,7 +240,7 @@ def test_failure_mid_build_leaves_nothing(tree, monkeypatch, where):
             original(*args)
         monkeypatch.setattr(action_api, "write_keys", flaky)
     else:
-        monkeypatch.setattr(build, "_build_mesh", _raise_after(build._build_mesh))
+        monkeypatch.setattr(branch_mesh, "build_mesh", _raise_after(branch_mesh.build_mesh))
     with pytest.raises(RuntimeError, match="injected failure"):
         build.build_tree(bpy.context, tree, "Tree")
     assert _ids() == before
@@ -259,7 +260,7 @@ def test_existing_collection_is_replaced_only_when_asked(tree, monkeypatch):
     # a replacement that fails at the last step leaves the old tree as it was
     def boom(collection):
         raise RuntimeError("boom")
-    monkeypatch.setattr(build, "remove_collection", boom)
+    monkeypatch.setattr(objects, "remove_collection", boom)
     with pytest.raises(RuntimeError, match="boom"):
         build.build_tree(bpy.context, short, "Tree", replace=True)
     assert _ids() == after_first

@@ -17,7 +17,8 @@ import bpy
 
 from ...core.errors import InputError
 from .action_api import action_fcurves
-from .build import deselect_all, set_frame_range
+from .objects import deselect_all
+from .timing import set_frame_range
 
 
 class ExportError(RuntimeError):

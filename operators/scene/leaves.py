@@ -5,7 +5,7 @@ Why bones: the flutter ``A(t) sin(ωt + β)`` of every cluster is a keyed rotati
 cards are one mesh skinned to those bones. A skinned mesh on one armature is what FBX, glTF and
 USD (UsdSkel) all carry with its animation; per-object keys would give thousands of objects and
 shape keys do not survive USD/glTF skinning. The cost is one bone per cluster (``LeafParams.
-max_clusters`` caps it).
+max_clusters`` caps it). The leaf material is in :mod:`.materials`.
 """
 from __future__ import annotations
 
@@ -16,8 +16,7 @@ from ...core import bones
 from ...core.detail.leaf_clusters import flap_weights, leaf_flap_offsets, leaf_mesh
 from ...core.tree3d import Tree3D
 from . import action_api
-
-TEXTURE_SIZE = 128
+from .materials import leaf_tint
 
 
 def leaf_bone_names(count: int) -> list[str]:
@@ -147,108 +146,3 @@ def add_leaf_flap(ob, tree: Tree3D, co: np.ndarray, name: str, created) -> None:
         action_api.write_keys(make_fcurve(path, 0, "Leaf flap"), frames, w[:, i])
 
 
-def leaf_tint(leaves) -> np.ndarray:
-    """``(3,)`` sRGB colour of the procedural leaf texture: the 90th percentile of the clusters'
-    video colours per channel. The ``Col`` attribute holds each cluster's colour divided by it,
-    so texture × ``Col`` = the video's colour, while a viewer that ignores vertex colours (solid
-    view, some engines) still shows leaf-coloured leaves."""
-    return np.maximum(np.percentile(np.asarray(leaves.colour, np.float64), 90, axis=0), 1e-3)
-
-
-def leaf_texture_pixels(size: int = TEXTURE_SIZE, tint=(1.0, 1.0, 1.0)) -> np.ndarray:
-    """``(size, size, 4)`` float RGBA of one leaf (stem at the bottom, tip at the top): a pointed
-    blade ``|u − ½| < 0.45 sin(π v^0.8)`` in ``tint`` (sRGB) shaded by a darker midrib,
-    transparent outside."""
-    v, u = np.mgrid[0:size, 0:size].astype(np.float64) / (size - 1)
-    half = 0.45 * np.sin(np.pi * np.clip(v, 0, 1) ** 0.8)
-    d = np.abs(u - 0.5)
-    alpha = np.clip((half - d) * size * 0.5, 0.0, 1.0)
-    grey = 0.85 - 0.25 * np.exp(-(d / 0.02) ** 2) * (v < 0.95) - 0.1 * (d / np.maximum(half, 1e-3)) ** 2
-    rgba = np.stack([grey, grey, grey, alpha], axis=-1)
-    rgba[..., :3] = np.clip(rgba[..., :3] / 0.85 * np.asarray(tint, np.float64), 0, 1)
-    return rgba.astype(np.float32)
-
-
-def leaf_image(name: str, path: str | None, tint=(1.0, 1.0, 1.0)):
-    """The leaf texture: the user's image at ``path`` (packed into the .blend), or a procedural
-    leaf (:func:`leaf_texture_pixels`). Raises InputError for an image Blender cannot read."""
-    if path:
-        from ...core.errors import InputError
-        try:
-            img = bpy.data.images.load(path, check_existing=False)
-        except RuntimeError as exc:
-            raise InputError(f"cannot read the leaf image '{path}' ({exc}); pick a PNG/JPEG/TIFF with the "
-                             "leaf's shape in its alpha channel, or clear the field") from None
-        if img.size[0] == 0 or img.size[1] == 0:
-            bpy.data.images.remove(img)
-            raise InputError(f"'{path}' is not an image Blender can read; pick a PNG/JPEG/TIFF leaf, or clear "
-                             "the field for the procedural leaf")
-        try:
-            img.pack()
-        except RuntimeError:
-            bpy.data.images.remove(img)
-            raise
-        return img
-    img = bpy.data.images.new(f"{name} Texture", TEXTURE_SIZE, TEXTURE_SIZE, alpha=True)
-    img.pixels.foreach_set(leaf_texture_pixels(tint=tint).ravel())
-    img.file_format = "PNG"
-    img.pack()
-    return img
-
-
-def leaf_material(name: str, image_path: str | None = None, tint=(0.3, 0.5, 0.2)) -> bpy.types.Material:
-    """Leaf material: the leaf image (``image_path`` or procedural, packed; alpha cut-out)
-    multiplied by the mesh's ``Col`` colour attribute (the video's colour), Principled BSDF,
-    two-sided; ``tint`` (sRGB, :func:`leaf_tint`) colours the procedural leaf and the solid view.
-    The caller removes it (and its image, via :func:`material_images`) on failure."""
-    mat = bpy.data.materials.new(name)
-    img = None
-    try:
-        mat.diffuse_color = (*(_srgb_to_linear(np.asarray(tint, np.float64)) * 0.8), 1.0)
-        if hasattr(mat, "surface_render_method"):          # EEVEE Next (4.2+)
-            mat.surface_render_method = "DITHERED"
-        if hasattr(mat, "blend_method"):
-            try:
-                mat.blend_method = "CLIP"
-            except TypeError:
-                pass
-        mat.use_backface_culling = False
-        img = leaf_image(name, image_path, tint)
-        from .build import principled_nodes  # build imports this module
-        nt, out, bsdf = principled_nodes(mat)
-        tex = nt.nodes.new("ShaderNodeTexImage")
-        tex.image = img
-        attr = nt.nodes.new("ShaderNodeVertexColor")
-        attr.layer_name = "Col"
-        mix = nt.nodes.new("ShaderNodeMix")
-        mix.data_type = "RGBA"
-        mix.blend_type = "MULTIPLY"
-        mix.inputs["Factor"].default_value = 1.0
-        for i, node in enumerate((tex, attr, mix, bsdf, out)):
-            node.location = (260 * i - 700, 120 * ((i % 2) * 2 - 1))
-        sock = {s.identifier: s for s in mix.inputs}
-        out_sock = {s.identifier: s for s in mix.outputs}
-        link = nt.links.new
-        link(tex.outputs["Color"], sock["A_Color"])
-        link(attr.outputs["Color"], sock["B_Color"])
-        link(out_sock["Result_Color"], bsdf.inputs["Base Color"])
-        link(tex.outputs["Alpha"], bsdf.inputs["Alpha"])
-        bsdf.inputs["Roughness"].default_value = 0.6
-        link(bsdf.outputs["BSDF"], out.inputs["Surface"])
-    except BaseException:
-        bpy.data.materials.remove(mat)
-        if img is not None:
-            bpy.data.images.remove(img)
-        raise
-    return mat
-
-
-def material_images(mat) -> list:
-    """Images used by ``mat``'s node tree (to remove them with it)."""
-    if mat is None or mat.node_tree is None:
-        return []
-    return [n.image for n in mat.node_tree.nodes if n.type == "TEX_IMAGE" and n.image is not None]
-
-
-def _srgb_to_linear(c: np.ndarray) -> np.ndarray:
-    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)

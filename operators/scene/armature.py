@@ -1,0 +1,81 @@
+"""The tree's armature: one connected bone per edge at the frame-0 positions (built in one
+edit-mode session) and its pose keyed in QUATERNION mode at every frame, in bulk (``foreach_set``
+for bones and keys, no per-key Python)."""
+from __future__ import annotations
+
+import bpy
+import numpy as np
+
+from ...core import bones
+from ...core.tree3d import Tree3D
+from . import action_api
+from .objects import Created, deselect_all
+
+
+def build_armature(context, tree: Tree3D, coll, name: str, created: Created, extra_edit=None):
+    """Armature object with one connected bone per edge at frame-0 positions; ``extra_edit(data)``
+    adds more bones in the same edit-mode session (each mode switch updates the whole view layer,
+    which is what made forests slow).
+
+    Returns ``(object, rest (B, 3, 3), extra)``: rest rotations read back from ``bone.matrix_local``
+    in :func:`bones.bone_edges` order, and what ``extra_edit`` returned (its bone names)."""
+    edges = bones.bone_edges(tree.parents)
+    names = bones.bone_names(tree.parents)
+    parent_bone = bones.bone_parents(tree.parents)
+    rest_pos = np.asarray(tree.nodes3d[0], np.float32)
+    data = created.add(bpy.data.armatures, bpy.data.armatures.new(name))
+    data.display_type = "STICK"
+    rig = created.add(bpy.data.objects, bpy.data.objects.new(name, data))
+    coll.objects.link(rig)
+    view_layer = context.view_layer
+    deselect_all(view_layer)
+    rig.select_set(True)
+    view_layer.objects.active = rig
+    with context.temp_override(active_object=rig, object=rig, edit_object=rig):   # also in a scratch scene
+        bpy.ops.object.mode_set(mode="EDIT")
+        try:
+            _edit_bones(data, names, rest_pos[edges[:, 0]], rest_pos[edges[:, 1]], parent_bone)
+            extra = extra_edit(data) if extra_edit is not None else []
+        finally:
+            bpy.ops.object.mode_set(mode="OBJECT")
+
+    order = {b.name: i for i, b in enumerate(data.bones)}
+    if len(order) != len(names) + len(extra):
+        raise RuntimeError(f"the armature has {len(order)} bones, expected {len(names) + len(extra)}")
+    flat = np.empty(len(order) * 16, np.float32)
+    data.bones.foreach_get("matrix_local", flat)
+    mats = flat.reshape(-1, 4, 4).transpose(0, 2, 1)         # foreach_get is column-major
+    rest = mats[[order[n] for n in names], :3, :3].astype(np.float64)
+
+    quaternion = bpy.types.PoseBone.bl_rna.properties["rotation_mode"].enum_items["QUATERNION"].value
+    rig.pose.bones.foreach_set("rotation_mode", np.full(len(order), quaternion, np.int32))
+    return rig, rest, extra
+
+
+def _edit_bones(data, names: list[str], heads: np.ndarray, tails: np.ndarray, parent_bone: np.ndarray) -> None:
+    """In edit mode: bones ``names`` from ``heads``/``tails (B, 3)`` metres, roll 0, each connected
+    to ``parent_bone`` (-1: none): its head is the parent's tail, the node they share."""
+    ebones = data.edit_bones
+    new = [ebones.new(n) for n in names]
+    ebones.foreach_set("head", np.asarray(heads, np.float32).ravel())
+    ebones.foreach_set("tail", np.asarray(tails, np.float32).ravel())
+    ebones.foreach_set("roll", np.zeros(len(names), np.float32))
+    for eb, pb in zip(new, parent_bone):
+        if pb >= 0:
+            eb.parent = new[pb]
+            eb.use_connect = True
+
+
+def key_pose(rig, local: np.ndarray, names: list[str], action_name: str, created: Created):
+    """Key ``local (F, B, 4)`` quaternions on the rig's pose bones at frames ``1..F``."""
+    action, make_fcurve = action_api.new_action(rig, action_name)
+    created.add(bpy.data.actions, action)
+    frames = np.arange(1, len(local) + 1, dtype=np.float32)
+    pose_index = {pb.name: i for i, pb in enumerate(rig.pose.bones)}
+    for b, name in enumerate(names):
+        if name not in pose_index:
+            raise RuntimeError(f"pose bone {name} is missing")
+        path = f'pose.bones["{bpy.utils.escape_identifier(name)}"].rotation_quaternion'
+        for i in range(4):
+            action_api.write_keys(make_fcurve(path, i, name), frames, local[:, b, i])
+    return action, make_fcurve

@@ -1,0 +1,190 @@
+"""The tree's materials: the procedural, UV-mapped bark of the branch mesh (Principled BSDF with
+Voronoi cells and, for smooth/rough bark, furrows along the branch) and the leaf cards' material
+(a packed leaf image, the user's or a procedural one, times the video's colour per vertex,
+alpha cut-out, two-sided). The caller removes a material (and its images,
+:func:`material_images`) when a build fails."""
+from __future__ import annotations
+
+import bpy
+import numpy as np
+
+from ...core.errors import InputError
+
+TEXTURE_SIZE = 128
+
+
+#: bark material by preset: (bump strength, furrow share of the relief)
+BARK_LOOK = {"none": (0.35, 0.0), "smooth": (0.2, 0.15), "rough": (0.6, 0.6)}
+
+
+def principled_nodes(mat):
+    """``mat``'s node tree emptied (nodes switched on first on Blender 4.x; 5.x always has them),
+    with a Material Output and a Principled BSDF: ``(node_tree, output, bsdf)``."""
+    if mat.node_tree is None:
+        mat.use_nodes = True
+    nt = mat.node_tree
+    nt.nodes.clear()
+    return nt, nt.nodes.new("ShaderNodeOutputMaterial"), nt.nodes.new("ShaderNodeBsdfPrincipled")
+
+
+def bark_material(name: str, kind: str = "none") -> bpy.types.Material:
+    """A Principled BSDF bark, procedural and UV-mapped (the bark follows the bending branches):
+    brown-grey noise colour; bump from Voronoi cells plus, for ``kind`` "smooth"/"rough", furrows
+    along the branch (a distorted Wave texture in bands across u, i.e. running along v), with the
+    strengths of :data:`BARK_LOOK`. The caller removes it on failure."""
+    strength, furrow = BARK_LOOK.get(kind, BARK_LOOK["none"])
+    mat = bpy.data.materials.new(name)
+    try:
+        mat.diffuse_color = (0.22, 0.17, 0.13, 1.0)          # solid-view colour
+        mat.roughness = 0.9
+        nt, out, bsdf = principled_nodes(mat)
+        coord = nt.nodes.new("ShaderNodeTexCoord")
+        mapping = nt.nodes.new("ShaderNodeMapping")
+        noise = nt.nodes.new("ShaderNodeTexNoise")
+        voronoi = nt.nodes.new("ShaderNodeTexVoronoi")
+        ramp = nt.nodes.new("ShaderNodeValToRGB")
+        bump = nt.nodes.new("ShaderNodeBump")
+        for i, node in enumerate((coord, mapping, noise, voronoi, ramp, bump, bsdf, out)):
+            node.location = (220 * i - 900, 150 * ((i % 2) * 2 - 1))
+        mapping.inputs["Scale"].default_value = (4.0, 6.0, 4.0)
+        noise.inputs["Scale"].default_value = 3.0
+        noise.inputs["Detail"].default_value = 8.0
+        voronoi.inputs["Scale"].default_value = 5.0
+        ramp.color_ramp.elements[0].color = (0.07, 0.055, 0.045, 1.0)
+        ramp.color_ramp.elements[1].color = (0.33, 0.29, 0.25, 1.0)
+        bump.inputs["Strength"].default_value = strength
+        bsdf.inputs["Roughness"].default_value = 0.9
+        link = nt.links.new
+        link(coord.outputs["UV"], mapping.inputs["Vector"])
+        link(mapping.outputs["Vector"], noise.inputs["Vector"])
+        link(mapping.outputs["Vector"], voronoi.inputs["Vector"])
+        link(noise.outputs["Fac"], ramp.inputs["Fac"])
+        link(ramp.outputs["Color"], bsdf.inputs["Base Color"])
+        height = voronoi.outputs["Distance"]
+        if furrow > 0:
+            wave = nt.nodes.new("ShaderNodeTexWave")
+            wave.wave_type = "BANDS"
+            wave.bands_direction = "X"                       # bands across u: furrows along the branch
+            wave.inputs["Scale"].default_value = 2.0
+            wave.inputs["Distortion"].default_value = 6.0
+            wave.inputs["Detail"].default_value = 4.0
+            mix = nt.nodes.new("ShaderNodeMath")
+            mix.operation = "MULTIPLY_ADD"                   # wave · furrow + Voronoi distance
+            mix.inputs[1].default_value = furrow
+            wave.location, mix.location = (-460, -350), (-240, -350)
+            link(mapping.outputs["Vector"], wave.inputs["Vector"])
+            link(wave.outputs["Fac"], mix.inputs[0])
+            link(voronoi.outputs["Distance"], mix.inputs[2])
+            height = mix.outputs["Value"]
+        link(height, bump.inputs["Height"])
+        link(bump.outputs["Normal"], bsdf.inputs["Normal"])
+        link(bsdf.outputs["BSDF"], out.inputs["Surface"])
+    except BaseException:
+        bpy.data.materials.remove(mat)
+        raise
+    return mat
+
+
+def leaf_tint(leaves) -> np.ndarray:
+    """``(3,)`` sRGB colour of the procedural leaf texture: the 90th percentile of the clusters'
+    video colours per channel. The ``Col`` attribute holds each cluster's colour divided by it,
+    so texture × ``Col`` = the video's colour, while a viewer that ignores vertex colours (solid
+    view, some engines) still shows leaf-coloured leaves."""
+    return np.maximum(np.percentile(np.asarray(leaves.colour, np.float64), 90, axis=0), 1e-3)
+
+
+def leaf_texture_pixels(size: int = TEXTURE_SIZE, tint=(1.0, 1.0, 1.0)) -> np.ndarray:
+    """``(size, size, 4)`` float RGBA of one leaf (stem at the bottom, tip at the top): a pointed
+    blade ``|u − ½| < 0.45 sin(π v^0.8)`` in ``tint`` (sRGB) shaded by a darker midrib,
+    transparent outside."""
+    v, u = np.mgrid[0:size, 0:size].astype(np.float64) / (size - 1)
+    half = 0.45 * np.sin(np.pi * np.clip(v, 0, 1) ** 0.8)
+    d = np.abs(u - 0.5)
+    alpha = np.clip((half - d) * size * 0.5, 0.0, 1.0)
+    grey = 0.85 - 0.25 * np.exp(-(d / 0.02) ** 2) * (v < 0.95) - 0.1 * (d / np.maximum(half, 1e-3)) ** 2
+    rgba = np.stack([grey, grey, grey, alpha], axis=-1)
+    rgba[..., :3] = np.clip(rgba[..., :3] / 0.85 * np.asarray(tint, np.float64), 0, 1)
+    return rgba.astype(np.float32)
+
+
+def leaf_image(name: str, path: str | None, tint=(1.0, 1.0, 1.0)):
+    """The leaf texture: the user's image at ``path`` (packed into the .blend), or a procedural
+    leaf (:func:`leaf_texture_pixels`). Raises InputError for an image Blender cannot read."""
+    if path:
+        try:
+            img = bpy.data.images.load(path, check_existing=False)
+        except RuntimeError as exc:
+            raise InputError(f"cannot read the leaf image '{path}' ({exc}); pick a PNG/JPEG/TIFF with the "
+                             "leaf's shape in its alpha channel, or clear the field") from None
+        if img.size[0] == 0 or img.size[1] == 0:
+            bpy.data.images.remove(img)
+            raise InputError(f"'{path}' is not an image Blender can read; pick a PNG/JPEG/TIFF leaf, or clear "
+                             "the field for the procedural leaf")
+        try:
+            img.pack()
+        except RuntimeError:
+            bpy.data.images.remove(img)
+            raise
+        return img
+    img = bpy.data.images.new(f"{name} Texture", TEXTURE_SIZE, TEXTURE_SIZE, alpha=True)
+    img.pixels.foreach_set(leaf_texture_pixels(tint=tint).ravel())
+    img.file_format = "PNG"
+    img.pack()
+    return img
+
+
+def leaf_material(name: str, image_path: str | None = None, tint=(0.3, 0.5, 0.2)) -> bpy.types.Material:
+    """Leaf material: the leaf image (``image_path`` or procedural, packed; alpha cut-out)
+    multiplied by the mesh's ``Col`` colour attribute (the video's colour), Principled BSDF,
+    two-sided; ``tint`` (sRGB, :func:`leaf_tint`) colours the procedural leaf and the solid view.
+    The caller removes it (and its image, via :func:`material_images`) on failure."""
+    mat = bpy.data.materials.new(name)
+    img = None
+    try:
+        mat.diffuse_color = (*(_srgb_to_linear(np.asarray(tint, np.float64)) * 0.8), 1.0)
+        if hasattr(mat, "surface_render_method"):          # EEVEE Next (4.2+)
+            mat.surface_render_method = "DITHERED"
+        if hasattr(mat, "blend_method"):
+            try:
+                mat.blend_method = "CLIP"
+            except TypeError:
+                pass
+        mat.use_backface_culling = False
+        img = leaf_image(name, image_path, tint)
+        nt, out, bsdf = principled_nodes(mat)
+        tex = nt.nodes.new("ShaderNodeTexImage")
+        tex.image = img
+        attr = nt.nodes.new("ShaderNodeVertexColor")
+        attr.layer_name = "Col"
+        mix = nt.nodes.new("ShaderNodeMix")
+        mix.data_type = "RGBA"
+        mix.blend_type = "MULTIPLY"
+        mix.inputs["Factor"].default_value = 1.0
+        for i, node in enumerate((tex, attr, mix, bsdf, out)):
+            node.location = (260 * i - 700, 120 * ((i % 2) * 2 - 1))
+        sock = {s.identifier: s for s in mix.inputs}
+        out_sock = {s.identifier: s for s in mix.outputs}
+        link = nt.links.new
+        link(tex.outputs["Color"], sock["A_Color"])
+        link(attr.outputs["Color"], sock["B_Color"])
+        link(out_sock["Result_Color"], bsdf.inputs["Base Color"])
+        link(tex.outputs["Alpha"], bsdf.inputs["Alpha"])
+        bsdf.inputs["Roughness"].default_value = 0.6
+        link(bsdf.outputs["BSDF"], out.inputs["Surface"])
+    except BaseException:
+        bpy.data.materials.remove(mat)
+        if img is not None:
+            bpy.data.images.remove(img)
+        raise
+    return mat
+
+
+def material_images(mat) -> list:
+    """Images used by ``mat``'s node tree (to remove them with it)."""
+    if mat is None or mat.node_tree is None:
+        return []
+    return [n.image for n in mat.node_tree.nodes if n.type == "TEX_IMAGE" and n.image is not None]
+
+
+def _srgb_to_linear(c: np.ndarray) -> np.ndarray:
+    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)

@@ -1,0 +1,112 @@
+"""Objects and data-blocks of a built tree: what a build has created so far (removed newest first
+when it fails), removing a tree's collection with the data only it used, deselecting, and reading
+an object's evaluated mesh in world space."""
+from __future__ import annotations
+
+import bpy
+import numpy as np
+
+from .materials import material_images
+
+
+class Created:
+    """Data-blocks made so far, removed newest first on failure."""
+
+    def __init__(self):
+        self.items: list[tuple] = []
+        self.undo: list = []
+
+    def add(self, collection, id_):
+        self.items.append((collection, id_))
+        return id_
+
+    def on_failure(self, undo) -> None:
+        """Call ``undo()`` (e.g. restore scene settings) when the build fails."""
+        self.undo.append(undo)
+
+    def remove(self, context) -> None:
+        for undo in reversed(self.undo):
+            try:
+                undo()
+            except (ReferenceError, RuntimeError, TypeError, ValueError):
+                pass
+        for _, id_ in self.items:
+            try:
+                if isinstance(id_, bpy.types.Object) and id_.mode != "OBJECT":
+                    with context.temp_override(active_object=id_, object=id_):
+                        bpy.ops.object.mode_set(mode="OBJECT")
+            except (ReferenceError, RuntimeError):
+                pass
+        for collection, id_ in reversed(self.items):
+            try:
+                collection.remove(id_)
+            except ReferenceError:                  # already gone with its owner
+                pass
+        self.items.clear()
+        self.undo.clear()
+
+
+def _data_collection(id_):
+    for attr, typ in (("meshes", bpy.types.Mesh), ("armatures", bpy.types.Armature),
+                      ("actions", bpy.types.Action), ("materials", bpy.types.Material),
+                      ("curves", bpy.types.Curve), ("images", bpy.types.Image)):
+        if isinstance(id_, typ):
+            return getattr(bpy.data, attr)
+    raise TypeError(f"no removal for {type(id_).__name__}")
+
+
+def remove_collection(coll: bpy.types.Collection) -> None:
+    """Remove ``coll``, its child collections, all their objects, and the objects' data, actions and
+    materials that nothing else uses any more."""
+    objects = set(coll.all_objects)
+    datas, actions, materials = set(), set(), set()
+    for ob in objects:
+        if ob.data is not None:
+            datas.add(ob.data)
+            materials.update(m for m in getattr(ob.data, "materials", ()) if m is not None)
+        for owner in (ob, getattr(ob.data, "shape_keys", None)):     # the leaves' flap keys too
+            ad = getattr(owner, "animation_data", None)
+            if ad is not None and ad.action is not None:
+                actions.add(ad.action)
+    children = list(coll.children_recursive)
+    for ob in objects:
+        bpy.data.objects.remove(ob, do_unlink=True)
+    images = {img for m in materials for img in material_images(m)}
+    for ids in (datas, actions, materials, images):
+        for id_ in ids:
+            if id_.users == 0:
+                _data_collection(id_).remove(id_)
+    for c in reversed(children):
+        if not c.all_objects:
+            bpy.data.collections.remove(c)
+    bpy.data.collections.remove(coll)
+
+
+def deselect_all(view_layer) -> None:
+    """Deselect every object of ``view_layer`` (skipping entries of objects just removed, which
+    read as None until the view layer resyncs)."""
+    for ob in view_layer.objects:
+        if ob is not None and ob.select_get():
+            ob.select_set(False)
+
+
+def evaluated_world_mesh(ob, triangles: bool = False):
+    """World-space vertices ``(V, 3)`` float64 of ``ob``'s evaluated mesh (modifiers, armature
+    pose; curves too), and with ``triangles`` its loop triangles ``(T, 3)`` vertex indices (else
+    None)."""
+    dg = bpy.context.evaluated_depsgraph_get()
+    ev = ob.evaluated_get(dg)
+    me = ev.to_mesh()
+    try:
+        co = np.empty(len(me.vertices) * 3, np.float32)
+        me.vertices.foreach_get("co", co)
+        tri = None
+        if triangles:
+            me.calc_loop_triangles()
+            tri = np.empty(len(me.loop_triangles) * 3, np.int32)
+            me.loop_triangles.foreach_get("vertices", tri)
+            tri = tri.reshape(-1, 3)
+    finally:
+        ev.to_mesh_clear()
+    mw = np.array(ev.matrix_world)
+    return co.reshape(-1, 3).astype(np.float64) @ mw[:3, :3].T + mw[:3, 3], tri
