@@ -23,6 +23,14 @@ def _cli(argv: list[str]) -> int:
 _degraded = False
 
 
+def __getattr__(name: str):
+    """``tree_from_video.api`` (the scripting API) without importing it at add-on load time."""
+    if name == "api":
+        import importlib
+        return importlib.import_module(".api", __name__)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
 def register():
     global _cli_handle, _degraded
     import bpy

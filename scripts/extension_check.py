@@ -10,10 +10,9 @@ With the bpy wheel in a venv holding the zip's wheels, the add-on folder extract
 
     venv/bin/python scripts/extension_check.py --package-dir DIR/tree_from_video --sample sample_videos/broad
 
-Checks that the add-on is enabled (Blender) or registers (wheel), runs ``core.pipeline.run`` on the
-sample with ``Settings(frames="0:24")``, ``core.pipeline.build_3d`` and
-``operators.scene.build.build_tree(bpy.context, tree, "T")``, and asserts an armature with bones
-and keyframes. ``--site DIR`` also asserts scipy and cv2 were imported from DIR (the wheels).
+Checks that the add-on is enabled (Blender) or registers (wheel), runs the public API on the
+sample (``api.reconstruct(video, outline, frames="0:24")``, ``api.build_3d`` and
+``api.build_tree(bpy.context, tree, "T")``), and asserts an armature with bones and keyframes. ``--site DIR`` also asserts scipy and cv2 were imported from DIR (the wheels).
 Exits 0 on success, 1 on any failure.
 """
 from __future__ import annotations
@@ -80,23 +79,21 @@ def main() -> int:
                 print(f"extension_check: {mod.__name__} was not imported from {site}", file=sys.stderr)
                 return 1
 
-    pipeline = importlib.import_module(f"{name}.core.pipeline")
-    library = importlib.import_module(f"{name}.core.generate.species").species_library()
+    api = pkg.api                          # the public scripting API, as a user script reaches it
+    library = api.species_library()
     assert {"broad", "sparse", "conifer"} <= set(library), f"species library incomplete: {sorted(library)}"
-    build = importlib.import_module(f"{name}.operators.scene.build")
-    action_api = importlib.import_module(f"{name}.operators.scene.action_api")
 
     sample = os.path.abspath(a.sample)
-    settings = pipeline.Settings(frames=a.frames)
     t = time.perf_counter()
-    res = pipeline.run(os.path.join(sample, "video.mp4"), os.path.join(sample, "outline.json"), settings)
+    res = api.reconstruct(os.path.join(sample, "video.mp4"), os.path.join(sample, "outline.json"), frames=a.frames)
     t_run = time.perf_counter() - t
     t = time.perf_counter()
-    tree = pipeline.build_3d(res, settings)
+    tree = api.build_3d(res, frames=a.frames)
     t_3d = time.perf_counter() - t
     t = time.perf_counter()
-    out = build.build_tree(bpy.context, tree, "T")
+    out = api.build_tree(bpy.context, tree, "T")
     t_build = time.perf_counter() - t
+    action_api = pkg.operators.scene.action_api       # loaded by build_tree
 
     rig = out["armature"]
     assert rig is not None and rig.type == "ARMATURE", f"no armature: {rig!r}"

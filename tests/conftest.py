@@ -11,6 +11,7 @@ load_package()
 
 # --- shared fixtures: every sample variant generated once per session and run through the core ---
 import pytest  # noqa: E402
+import report  # noqa: E402
 
 BAR_VARIANTS = ("broad", "conifer", "sparse", "hard", "grey", "gentle")
 ALL_VARIANTS = BAR_VARIANTS + ("dense",)
@@ -35,9 +36,25 @@ def runs(tmp_path_factory):
 
 @pytest.fixture(scope="session")
 def scores(runs):
+    """{variant: {kind: Score}} of the 2D skeletons against the truth (a report table, too)."""
     from groundtruth import score
-    return {v: {k: score(e[k].skeleton.parents, e[k].skeleton.nodes2d, e["truth"]) for k in ("traced", "paper")}
-            for v, e in runs.items()}
+    out = {v: {k: score(e[k].skeleton.parents, e[k].skeleton.nodes2d, e["truth"]) for k in ("traced", "paper")}
+           for v, e in runs.items()}
+    lines = [f"{'variant':<9}{'kind':<8}{'chamfer1':>9}{'chamferF':>9}{'cover':>7}{'tipcorr':>8}{'df Hz':>7}{'nodes':>6}"]
+    for v, by_kind in out.items():
+        for k, s in by_kind.items():
+            lines.append(f"{v:<9}{k:<8}{100 * s.chamfer1:8.2f}%{100 * s.chamfer_all:8.2f}%{s.coverage:7.2f}"
+                         f"{s.tip_corr:8.2f}{s.freq_err:7.3f}{s.n_nodes:6d}")
+    report.add("2D skeleton vs truth (tests/test_skeleton_truth.py)", lines)
+    return out
+
+
+def pytest_terminal_summary(terminalreporter):
+    """Print the measurement tables the tests collected (tests/report.py)."""
+    for title, lines in report.TABLES.items():
+        terminalreporter.section(title)
+        for line in lines:
+            terminalreporter.write_line(line)
 
 
 

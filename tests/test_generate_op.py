@@ -25,8 +25,8 @@ def registered():
 def last_tree() -> dict:
     """The live ``LAST_TREE`` of reconstruct_op: unregistering deletes the operator modules from
     sys.modules (register_submodule_factory), so a module imported at collection time may be stale."""
-    import importlib
-    return importlib.import_module("tree_from_video.operators.reconstruct_op").LAST_TREE
+    from tree_from_video.operators import reconstruct_op     # looked up in sys.modules now, not at collection
+    return reconstruct_op.LAST_TREE
 
 
 @pytest.fixture(autouse=True)

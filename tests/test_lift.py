@@ -1,6 +1,7 @@
 """3D lift (paper §3 with the envelope/trunk fixes) against the synthetic trees' true 3D shape."""
 import numpy as np
 import pytest
+import report
 from conftest import BAR_VARIANTS
 from groundtruth import lift_scores
 from tree_from_video.core.reconstruct import lift
@@ -25,16 +26,12 @@ def lift_table(runs, lifts):
         sk = runs[v]["traced"].skeleton
         rows[v] = lift_scores(L.nodes, sk.parents, sk.nodes2d[0, 0], runs[v]["truth"])
         rows[v]["inside"] = float(L.envelope.contains(L.nodes).mean())
-    return rows
-
-
-def test_print_lift_table(lift_table, capsys):
     lines = [f"{'variant':<9}{'chamfer3d':>10}{'flat truth':>11}{'ratio':>7}{'depth/w':>8}{'truth d/w':>10}{'inside':>7}"]
-    for v, r in lift_table.items():
+    for v, r in rows.items():
         lines.append(f"{v:<9}{100 * r['chamfer']:9.2f}%{100 * r['flat_truth']:10.2f}%{r['chamfer'] / r['flat_truth']:7.2f}"
                      f"{r['depth_ratio']:8.2f}{r['true_depth_ratio']:10.2f}{r['inside']:7.3f}")
-    with capsys.disabled():
-        print("\n" + "\n".join(lines))
+    report.add("3D lift vs truth (tests/test_lift.py)", lines)
+    return rows
 
 
 @pytest.mark.parametrize("variant", BAR_VARIANTS)

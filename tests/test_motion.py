@@ -1,6 +1,7 @@
 """3D motion (paper §4) against the synthetic trees' true motion, and the solvers' building blocks."""
 import numpy as np
 import pytest
+import report
 from conftest import BAR_VARIANTS
 from motion_metrics import motion_scores
 from tree_from_video.core import rotations
@@ -24,20 +25,16 @@ def solved(runs):
             entry[key] = motion_scores(m.nodes.astype(np.float64), sk.parents, tgt, base, runs[v]["truth"])
             entry[key + "_motion"] = m
         out[v] = entry
-    return out
-
-
-def test_print_motion_table(solved, capsys):
     lines = [f"{'variant':<9}{'solver':<7}{'reproj med':>11}{'max':>7}{'dα95°':>7}{'truth':>7}{'dαmax°':>8}"
              f"{'truth':>7}{'amp':>6}{'corr':>6}{'2D':>6}"]
-    for v, e in solved.items():
+    for v, e in out.items():
         for key in ("prob", "det"):
             s = e[key]
             lines.append(f"{v:<9}{key:<7}{100 * s['reproj_median']:10.2f}%{100 * s['reproj_max']:6.2f}%"
                          f"{s['angle95']:7.1f}{s['true_angle95']:7.1f}{s['angle_max']:8.1f}{s['true_angle_max']:7.1f}"
                          f"{s['tip_amplitude_ratio']:6.2f}{s['tip_corr']:6.2f}{s['tip_corr_2d']:6.2f}")
-    with capsys.disabled():
-        print("\n" + "\n".join(lines))
+    report.add("3D motion vs truth (tests/test_motion.py)", lines)
+    return out
 
 
 @pytest.mark.parametrize("variant", BAR_VARIANTS + ("dense",))

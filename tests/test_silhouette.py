@@ -7,6 +7,7 @@ import bpy
 import cv2
 import numpy as np
 import pytest
+import report
 from groundtruth import true_labels
 from tree_from_video.core import pipeline
 from tree_from_video.operators.scene import build
@@ -70,7 +71,9 @@ def test_rendered_silhouette_overlaps_the_video_tree(runs, variant, tmp_path):
     built["leaves"].hide_render = True
     bare = render_silhouette(tree, str(tmp_path / "bare.png"))
     iou_bare = (bare & truth).sum() / max((bare | truth).sum(), 1)
-    print(f"\n{variant}: silhouette IoU {iou:.3f} (branches only {iou_bare:.3f}); {tree.leaves.count if tree.leaves else 0} "
-          f"leaf clusters, rendered {sil.sum()} px vs true {truth.sum()} px")
+    report.add("frame-1 silhouette vs the true tree mask (tests/test_silhouette.py)",
+               [f"{variant}: silhouette IoU {iou:.3f} (branches only {iou_bare:.3f}); "
+                f"{tree.leaves.count if tree.leaves else 0} leaf clusters, rendered {sil.sum()} px vs true "
+                f"{truth.sum()} px"])
     assert iou >= BARS[variant]
     assert iou > iou_bare                      # the leaves go where the video has foliage

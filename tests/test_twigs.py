@@ -238,8 +238,7 @@ def test_pipeline_adds_twigs_after_the_motion_inside_the_envelope():
 
 
 def test_batch_flags_reach_the_settings(tmp_path):
-    import importlib
-    batch = importlib.import_module("tree_from_video.cli")
+    from tree_from_video import cli as batch
     args = batch.build_parser().parse_args(["v.mp4", "--outline", "o.json", "--out", "x", "--twigs", "2",
                                             "--curliness", "0.5", "--bark", "smooth"])
     assert (args.twigs, args.curliness, args.bark) == (2, 0.5, "smooth")
