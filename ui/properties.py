@@ -1,15 +1,47 @@
 """Settings saved with the .blend (``scene.tree_video``) and the running job's status
-(``window_manager.tree_video_status``). Defaults reproduce the paper's settings."""
+(``window_manager.tree_video_status``).
+
+A setting the core has a parameter for takes its default and limits from the core's dataclass
+(:data:`CORE_FIELDS`, via :func:`.ranges.ranged`); the motion solver's σ and bounds and the lift's
+candidates take their defaults from :class:`MotionParams` / :class:`LiftParams` instances."""
 import bpy
 
+from ..core.detail.branch_mesh import MeshParams
 from ..core.detail.leaf_clusters import LeafParams
+from ..core.detail.twigs import TwigParams
+from ..core.pipeline import Settings
 from ..core.reconstruct.lift import LiftParams
 from ..core.reconstruct.motion import MotionParams
+from ..core.reconstruct.run import ReconstructSettings
+from .ranges import ranged
 
 _M = MotionParams()
 _L = LiftParams()
-_F = LeafParams()
 _LIBRARY_ITEMS: list = []
+
+#: panel property → (core dataclass, field) it mirrors: its default, its limits and (enums) its
+#: choices are the core's (tests/test_defaults.py checks the registered properties against them)
+CORE_FIELDS = {
+    "scale": (ReconstructSettings, "scale"),
+    "levels": (ReconstructSettings, "levels"),
+    "skeleton_kind": (ReconstructSettings, "skeleton"),
+    "fold_alpha": (ReconstructSettings, "fold_alpha"),
+    "solver": (MotionParams, "solver"),
+    "height_m": (Settings, "height_m"),
+    "twig_depth": (TwigParams, "depth"),
+    "curliness": (MeshParams, "curliness"),
+    "bark": (MeshParams, "bark"),
+    "leaf_density": (LeafParams, "density"),
+    "leaf_cards": (LeafParams, "cards"),
+    "max_leaf_clusters": (LeafParams, "max_clusters"),
+    "flutter_hz": (LeafParams, "flutter_hz"),
+    "flutter_gain": (LeafParams, "flutter_gain"),
+}
+
+
+def _core(prop: str, **kw) -> dict:
+    """``default``/``min``/``max`` of panel property ``prop`` from its :data:`CORE_FIELDS` entry."""
+    return ranged(*CORE_FIELDS[prop], **kw)
 
 
 def _library_items(self, context):
@@ -30,7 +62,7 @@ class TreeVideoSettings(bpy.types.PropertyGroup):
                                        description="First video frame to use (0-based)")
     frame_end: bpy.props.IntProperty(name="End", default=240, min=1,
                                      description="Video frame to stop before (0-based, exclusive)")
-    scale: bpy.props.FloatProperty(name="Scale", default=1.0, min=0.05, max=1.0, subtype="FACTOR",
+    scale: bpy.props.FloatProperty(name="Scale", subtype="FACTOR", **_core("scale", open_min=0.01, soft_min=0.05),
                                    description="Downscale the video by this factor for speed (1 = full size)")
     # Outline
     outline_source: bpy.props.EnumProperty(
@@ -47,14 +79,14 @@ class TreeVideoSettings(bpy.types.PropertyGroup):
     outline_mask: bpy.props.PointerProperty(name="Mask", type=bpy.types.Mask,
                                             description="Mask drawn around the tree in frame 1 (Movie Clip editor)")
     # Reconstruction
-    levels: bpy.props.IntProperty(name="Hierarchy Levels", default=6, min=2, max=9,
+    levels: bpy.props.IntProperty(name="Hierarchy Levels", **_core("levels"),
                                   description="Levels of the binary motion hierarchy incl. the root (paper: 5-7)")
     skeleton_kind: bpy.props.EnumProperty(
-        name="Skeleton", default="traced",
+        name="Skeleton", **_core("skeleton_kind"),
         items=[("traced", "Traced", "Branches traced in the video, hierarchy attached through the crown"),
                ("paper", "Paper", "Cluster centroids folded toward parents (alpha = 0.4), as in the paper")],
         description="How the 2D skeleton's nodes are placed")
-    fold_alpha: bpy.props.FloatProperty(name="Fold α", default=0.4, min=0.0, max=1.0, subtype="FACTOR",
+    fold_alpha: bpy.props.FloatProperty(name="Fold α", subtype="FACTOR", **_core("fold_alpha"),
                                         description="Paper skeleton: share of the way each node moves toward its "
                                                     "parent (x'_i += α(x'_j − x'_i); paper: 0.4)")
     conifer: bpy.props.BoolProperty(name="Conifer Trunk", default=False,
@@ -62,7 +94,7 @@ class TreeVideoSettings(bpy.types.PropertyGroup):
     candidates: bpy.props.IntProperty(name="3D Candidates", default=_L.candidates, min=4, max=256,
                                       description="Depth offsets tried per branch push in the 3D lift (paper: L)")
     solver: bpy.props.EnumProperty(
-        name="Motion Solver", default="probabilistic",
+        name="Motion Solver", **_core("solver"),
         items=[("probabilistic", "Probabilistic", "Track × shape × prior per frame, root to leaf (paper §4)"),
                ("deterministic", "Deterministic", "Sphere about the parent joint ∩ line of sight (baseline)")],
         description="How the 3D motion is solved from the tracked 2D skeleton")
@@ -77,21 +109,22 @@ class TreeVideoSettings(bpy.types.PropertyGroup):
     max_total: bpy.props.FloatProperty(name="Max Total (Δ)", default=_M.max_total, min=0.05, max=3.14, subtype="ANGLE",
                                        description="Largest accumulated rotation of a branch (radians)")
     # Output
-    height_m: bpy.props.FloatProperty(name="Tree Height", default=10.0, min=0.1, max=200.0, unit="LENGTH",
+    height_m: bpy.props.FloatProperty(name="Tree Height", unit="LENGTH",
+                                      **_core("height_m", open_min=0.1, soft_max=200.0),
                                       description="Height of the reconstructed tree in the scene (metres)")
     build_mesh: bpy.props.BoolProperty(name="Branch Mesh", default=True,
                                        description="Build skinned bark tubes along the bones")
     fit_branches: bpy.props.BoolProperty(name="Fit Branches to Video", default=True,
                                          description="Measure branch widths and centre lines in the first frame "
                                                      "(the trunk sets the scale of all radii); off: pipe-model radii")
-    twig_depth: bpy.props.IntProperty(name="Twig Depth", default=2, min=0, max=6,
+    twig_depth: bpy.props.IntProperty(name="Twig Depth", **_core("twig_depth"),
                                       description="Generations of twigs grown from every branch tip by copying the "
                                                   "tree's own forks (0: none); they ride on their branch's motion")
-    curliness: bpy.props.FloatProperty(name="Curliness", default=0.3, min=0.0, max=1.0, subtype="FACTOR",
+    curliness: bpy.props.FloatProperty(name="Curliness", subtype="FACTOR", **_core("curliness"),
                                        description="Bend the branch tubes along minimum-jerk curves (0: straight; "
                                                    "1: up to 12% of each bone's length)")
     bark: bpy.props.EnumProperty(
-        name="Bark", default="rough",
+        name="Bark", **_core("bark"),
         items=[("none", "None", "Round tubes"),
                ("smooth", "Smooth", "Bark relief up to 0.5% of the radius (beech, birch)"),
                ("rough", "Rough", "Bark relief of 1-5% of the radius (oak, pine)")],
@@ -99,16 +132,17 @@ class TreeVideoSettings(bpy.types.PropertyGroup):
     build_leaves: bpy.props.BoolProperty(name="Leaves", default=True,
                                          description="Leaf clusters where the video shows foliage (seeds: Harris corners "
                                                      "of frame 1), riding their branches with their own flutter")
-    leaf_density: bpy.props.FloatProperty(name="Leaf Density", default=_F.density, min=0.02, max=1.0, subtype="FACTOR",
+    leaf_density: bpy.props.FloatProperty(name="Leaf Density", subtype="FACTOR",
+                                          **_core("leaf_density", open_min=0.01, soft_min=0.02),
                                           description="Share of the leaf seeds kept: fewer, larger clusters and fewer "
                                                       "polygons (polygons = clusters × cards)")
-    leaf_cards: bpy.props.IntProperty(name="Leaves per Cluster", default=_F.cards, min=1, max=128,
+    leaf_cards: bpy.props.IntProperty(name="Leaves per Cluster", **_core("leaf_cards", soft_max=128),
                                       description="Leaf cards (one quad each) in every cluster")
-    max_leaf_clusters: bpy.props.IntProperty(name="Max Clusters", default=_F.max_clusters, min=1, max=20000,
+    max_leaf_clusters: bpy.props.IntProperty(name="Max Clusters", **_core("max_leaf_clusters"),
                                              description="Upper bound on leaf clusters (each is one bone)")
-    flutter_hz: bpy.props.FloatProperty(name="Flutter", default=_F.flutter_hz, min=0.0, max=12.0, unit="NONE",
+    flutter_hz: bpy.props.FloatProperty(name="Flutter", unit="NONE", **_core("flutter_hz", soft_max=12.0),
                                         description="Leaf flutter frequency ω/2π in Hz (kept below half the frame rate)")
-    flutter_gain: bpy.props.FloatProperty(name="Flutter Strength", default=_F.flutter_gain, min=0.0, max=50.0,
+    flutter_gain: bpy.props.FloatProperty(name="Flutter Strength", **_core("flutter_gain", soft_max=50.0),
                                           description="Flutter amplitude per branch speed, seconds: A = strength × "
                                                       "speed / tree height (radians)")
     leaf_image: bpy.props.StringProperty(name="Leaf Image", subtype="FILE_PATH",

@@ -1,0 +1,82 @@
+"""One source of defaults and ranges: the core's parameter dataclasses (core/params.py). The panel's
+properties (ui/properties.py, ``CORE_FIELDS``) take theirs from there; this checks the registered
+properties against the core field by field.
+
+:func:`test_panel_properties_match_the_core` is the panel side."""
+import pytest
+
+from tree_from_video.core.params import spec
+from tree_from_video.ui.properties import CORE_FIELDS
+from tree_from_video.ui.ranges import ranged
+
+from trees import addon  # noqa: F401  (autouse fixture: the add-on registered per test)
+
+pytestmark = [pytest.mark.blender, pytest.mark.bpy53]
+
+#: float properties are stored as float32
+F32 = 1e-6
+
+
+def _panel(props, name):
+    return props.bl_rna.properties[name]
+
+
+@pytest.mark.parametrize("name", sorted(CORE_FIELDS))
+def test_panel_properties_match_the_core(addon, name):
+    """Default = the core's; enum items = the core's choices; limits: the closed bounds are the
+    core's, an open lower bound becomes a small value inside the range, an unbounded side keeps
+    Blender's limit; soft limits lie inside the core's range; a new scene starts at the default."""
+    cls, field = CORE_FIELDS[name]
+    s = spec(cls, field)
+    p = _panel(addon, name)
+    where = f"panel '{name}' vs {cls.__name__}.{field} ({s.describe()})"
+    if s.choices:
+        assert p.type == "ENUM", where
+        assert tuple(p.enum_items.keys()) == s.choices, where
+        assert p.default == s.default, where
+        assert getattr(addon, name) == s.default, where
+        return
+    assert p.type in ("INT", "FLOAT"), where
+    assert p.default == pytest.approx(s.default, rel=F32), where
+    assert getattr(addon, name) == pytest.approx(s.default, rel=F32), where
+    if s.lo is None:
+        assert p.hard_min < -1e9, where
+    elif s.lo_open:
+        assert s.ok(p.hard_min) and p.hard_min <= 0.1 * max(1.0, s.default), where
+    else:
+        assert p.hard_min == pytest.approx(s.lo, abs=F32), where
+    if s.hi is None:
+        assert p.hard_max > 1e9, where
+    else:
+        assert p.hard_max == pytest.approx(s.hi, rel=F32), where
+    for soft in (p.soft_min, p.soft_max):
+        assert p.hard_min <= soft <= p.hard_max, where
+    assert p.soft_min <= s.default <= p.soft_max, where
+
+
+def test_every_panel_setting_of_a_ranged_core_field_is_in_the_table(addon):
+    """The panel settings that mirror a ranged core field are all in ``CORE_FIELDS`` (none keeps a
+    default or range of its own), each pointing at a real field."""
+    expected = {"scale", "levels", "skeleton_kind", "fold_alpha", "solver", "height_m", "twig_depth", "curliness",
+                "bark", "leaf_density", "leaf_cards", "max_leaf_clusters", "flutter_hz", "flutter_gain"}
+    assert expected <= set(CORE_FIELDS)
+    for name, (cls, field) in CORE_FIELDS.items():
+        spec(cls, field)                                  # raises for a field without a range
+        assert name in addon.bl_rna.properties, name
+
+
+def test_ranged_needs_a_value_inside_an_open_bound():
+    from tree_from_video.core.detail.leaf_clusters import LeafParams
+    from tree_from_video.core.reconstruct.run import ReconstructSettings
+    assert ranged(ReconstructSettings, "levels") == {"default": 6, "min": 2, "max": 9}
+    assert ranged(LeafParams, "density", open_min=0.01, soft_min=0.02) == {"default": 1.0, "min": 0.01, "max": 1.0,
+                                                                          "soft_min": 0.02}
+    assert ranged(LeafParams, "flutter_hz", soft_max=12) == {"default": 2.0, "min": 0.0, "soft_max": 12}
+    with pytest.raises(ValueError, match="open_min"):
+        ranged(LeafParams, "density")                     # > 0: the caller picks the smallest value
+    with pytest.raises(ValueError, match="open_min"):
+        ranged(LeafParams, "density", open_min=0.0)
+    with pytest.raises(ValueError, match="drop open_min"):
+        ranged(ReconstructSettings, "levels", open_min=1)
+    with pytest.raises(ValueError, match="outside the core's range"):
+        ranged(ReconstructSettings, "levels", soft_max=12)
