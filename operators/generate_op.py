@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import math
 import os
-import time
 
 import bpy
 import numpy as np
@@ -21,8 +20,8 @@ from ..core.job import Job
 from ..core.progress import sub_progress
 from . import jobs, reconstruct_op
 from .scene.build import build_tree
-from .scene.objects import deselect_all, evaluated_world_mesh, remove_collection
-from .scene.timing import set_scene_timing
+from .scene.forest import ForestBuild
+from .scene.objects import evaluated_world_mesh, unique_collection_name
 
 #: seconds of building per timer tick while a forest is built
 BUILD_SLICE_S = 0.15
@@ -107,14 +106,6 @@ def ground_triangles(ob) -> np.ndarray:
         raise InputError("no ground mesh chosen; pick a mesh with faces, or clear it to use an area")
     world, tri = evaluated_world_mesh(ob, triangles=True)
     return world[tri]
-
-
-def unique_collection_name(base: str) -> str:
-    name, k = base, 1
-    while bpy.data.collections.get(name) is not None:
-        name = f"{base}.{k:03d}"
-        k += 1
-    return name
 
 
 def _grow_work(model, tree_src, spec, params, audio, slots_fn=None):
@@ -215,7 +206,8 @@ class TREE_OT_generate_forest(jobs.JobOperator, bpy.types.Operator):
 
     # the worker's trees are built on the main thread: all at once (execute) or a few per tick (invoke)
     def done(self, context, result):
-        state = _ForestBuild(context, self._name, *result)
+        props = context.scene.tree_video
+        state = ForestBuild(context, self._name, *result, curliness=props.curliness, bark=props.bark)
         if self._timer is None and getattr(self, "_invoked", False):
             self._pending = state
             wm = context.window_manager
@@ -268,61 +260,6 @@ class TREE_OT_generate_forest(jobs.JobOperator, bpy.types.Operator):
         self.report({"INFO"}, f"'{state.coll.name}': {len(state.built)} trees, {bones} bones, "
                               f"{state.elapsed:.1f} s to build")
         return {"FINISHED"}
-
-
-class _ForestBuild:
-    """Builds the grown trees into one collection, a few per call; ``remove()`` undoes it all."""
-
-    def __init__(self, context, name: str, model, trees, slots):
-        self.trees, self.slots, self.model = trees, slots, model
-        self.coll = bpy.data.collections.new(name)
-        context.scene.collection.children.link(self.coll)
-        self.built: list[dict] = []
-        self.materials: dict | None = None
-        self.k = 0
-        self.elapsed = 0.0
-
-    @property
-    def finished(self) -> bool:
-        return self.k >= len(self.trees)
-
-    def step(self, context, budget_s: float) -> None:
-        t0 = time.perf_counter()
-        while not self.finished and time.perf_counter() - t0 < budget_s:
-            tree, slot = self.trees[self.k], self.slots[self.k]
-            name = unique_collection_name(f"{self.coll.name} {self.k:03d}")
-            props = context.scene.tree_video
-            # each tree is built in a scratch scene: its edit-mode switches then update a view layer
-            # holding one tree, not the whole forest so far (that made building quadratic)
-            scratch = bpy.data.scenes.new("Tree from Video build")
-            try:
-                with context.temp_override(scene=scratch, view_layer=scratch.view_layers[0]):
-                    built = build_tree(bpy.context, tree, name, materials=self.materials,
-                                       curliness=props.curliness, bark=props.bark, update_frame=False)
-                scratch.collection.children.unlink(built["collection"])
-                self.coll.children.link(built["collection"])
-            finally:
-                bpy.data.scenes.remove(scratch)
-            self.built.append(built)
-            rig = built["armature"]
-            rig.location = tuple(slot.position)
-            rig.rotation_euler = (0.0, 0.0, slot.rotation_z)
-            if self.materials is None:
-                self.materials = {"bark": built["material"],
-                                  "leaf": built["leaves"].data.materials[0] if built["leaves"] is not None else None}
-            self.k += 1
-        if self.finished:
-            deselect_all(context.view_layer)              # the forest is many objects: select none
-            scene = context.scene
-            set_scene_timing(scene, self.trees[0].fps, max(t.n_frames for t in self.trees))
-            scene.frame_set(scene.frame_start)
-        self.elapsed += time.perf_counter() - t0
-
-    def remove(self) -> None:
-        try:
-            remove_collection(self.coll)
-        except ReferenceError:
-            pass
 
 
 class TREE_OT_save_species(bpy.types.Operator):

@@ -1,6 +1,6 @@
 """Objects and data-blocks of a built tree: what a build has created so far (removed newest first
-when it fails), removing a tree's collection with the data only it used, deselecting, and reading
-an object's evaluated mesh in world space."""
+when it fails), removing a tree's collection with the data only it used, a free collection name,
+deselecting, and reading an object's evaluated mesh in world space."""
 from __future__ import annotations
 
 import bpy
@@ -110,3 +110,12 @@ def evaluated_world_mesh(ob, triangles: bool = False):
         ev.to_mesh_clear()
     mw = np.array(ev.matrix_world)
     return co.reshape(-1, 3).astype(np.float64) @ mw[:3, :3].T + mw[:3, 3], tri
+
+
+def unique_collection_name(base: str) -> str:
+    """``base``, or ``base.001``, ``base.002``… : the first name no collection has yet."""
+    name, k = base, 1
+    while bpy.data.collections.get(name) is not None:
+        name = f"{base}.{k:03d}"
+        k += 1
+    return name

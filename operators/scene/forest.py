@@ -1,0 +1,70 @@
+"""A forest in the scene: generated trees built into one collection a few at a time (so a modal
+operator keeps Blender responsive), each in a scratch scene, sharing one bark and one leaf material.
+"""
+from __future__ import annotations
+
+import time
+
+import bpy
+
+from .build import build_tree
+from .objects import deselect_all, remove_collection, unique_collection_name
+from .timing import set_scene_timing
+
+
+class ForestBuild:
+    """Builds the grown trees into one collection ``name``, a few per :meth:`step`, each at its
+    slot's position and turn, with the branch mesh's ``curliness`` and ``bark``; all trees share the
+    first one's bark and leaf materials. ``remove()`` undoes it all."""
+
+    def __init__(self, context, name: str, model, trees, slots, *, curliness: float | None = None,
+                 bark: str | None = None):
+        self.trees, self.slots, self.model = trees, slots, model
+        self.curliness, self.bark = curliness, bark
+        self.coll = bpy.data.collections.new(name)
+        context.scene.collection.children.link(self.coll)
+        self.built: list[dict] = []
+        self.materials: dict | None = None
+        self.k = 0
+        self.elapsed = 0.0
+
+    @property
+    def finished(self) -> bool:
+        return self.k >= len(self.trees)
+
+    def step(self, context, budget_s: float) -> None:
+        t0 = time.perf_counter()
+        while not self.finished and time.perf_counter() - t0 < budget_s:
+            tree, slot = self.trees[self.k], self.slots[self.k]
+            name = unique_collection_name(f"{self.coll.name} {self.k:03d}")
+            # each tree is built in a scratch scene: its edit-mode switches then update a view layer
+            # holding one tree, not the whole forest so far (that made building quadratic)
+            scratch = bpy.data.scenes.new("Tree from Video build")
+            try:
+                with context.temp_override(scene=scratch, view_layer=scratch.view_layers[0]):
+                    built = build_tree(bpy.context, tree, name, materials=self.materials,
+                                       curliness=self.curliness, bark=self.bark, update_frame=False)
+                scratch.collection.children.unlink(built["collection"])
+                self.coll.children.link(built["collection"])
+            finally:
+                bpy.data.scenes.remove(scratch)
+            self.built.append(built)
+            rig = built["armature"]
+            rig.location = tuple(slot.position)
+            rig.rotation_euler = (0.0, 0.0, slot.rotation_z)
+            if self.materials is None:
+                self.materials = {"bark": built["material"],
+                                  "leaf": built["leaves"].data.materials[0] if built["leaves"] is not None else None}
+            self.k += 1
+        if self.finished:
+            deselect_all(context.view_layer)              # the forest is many objects: select none
+            scene = context.scene
+            set_scene_timing(scene, self.trees[0].fps, max(t.n_frames for t in self.trees))
+            scene.frame_set(scene.frame_start)
+        self.elapsed += time.perf_counter() - t0
+
+    def remove(self) -> None:
+        try:
+            remove_collection(self.coll)
+        except ReferenceError:
+            pass
