@@ -3,7 +3,7 @@ PY := .venv/bin/python
 SAMPLE ?= broad
 REAL_BLENDER := ../shared/tools/real-blender
 
-.PHONY: setup demo test test-core test-blender bench clean extension extension-per-python test-extension
+.PHONY: setup demo lint test test-core test-blender bench clean extension extension-per-python test-extension
 
 setup:
 	bash scripts/setup.sh
@@ -14,7 +14,12 @@ demo: setup
 	@echo "demo: wrote out/$(SAMPLE)/: skeleton.npz tree3d.npz result.npz overlay.png overlay.mp4" \
 		"tree.blend tree.fbx tree.usdc tree.glb preview.png"
 
-test: setup
+# ruff over the whole repository, mypy over core/ (settings in pyproject.toml); the first step of make test.
+lint: setup
+	$(PY) -m ruff check .
+	$(PY) -m mypy
+
+test: setup lint
 	bash scripts/test.sh
 
 test-core: setup
@@ -38,10 +43,9 @@ extension-per-python: setup
 test-extension: setup
 	bash scripts/test_extension.sh
 
+# every benchmark in benchmarks/ (bench_*.py), one after the other (2 cores: never side by side)
 bench: setup
-	$(PY) benchmarks/bench_skeleton.py
-	$(PY) benchmarks/bench_motion.py
-	$(PY) benchmarks/bench_leaves.py
+	@set -e; for b in benchmarks/bench_*.py; do echo "== $$b"; $(PY) $$b; done
 
 clean:
 	rm -rf out dist .pytest_cache

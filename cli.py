@@ -28,6 +28,7 @@ from .core.detail.leaf_clusters import LeafParams
 from .core.detail.twigs import TwigParams
 from .core.envelope import envelope_from_meta
 from .core.errors import Cancelled, InputError
+from .core.fileio import atomic_savez
 from .core.generate import batch as gb
 from .core.generate import species
 from .core.params import spec
@@ -35,7 +36,6 @@ from .core.reconstruct import overlay, skeleton_io
 from .core.reconstruct.motion import MotionParams
 from .core.reconstruct.run import ReconstructSettings
 from .core.tree3d import save_tree
-from .core.fileio import atomic_savez
 
 
 def _default(cls: type, name: str):

@@ -12,8 +12,10 @@ import argparse
 import time
 
 import numpy as np
-from _package import load_package
+
 from tree_from_video.core.generate import species
+
+from _package import load_package
 
 
 def main() -> None:

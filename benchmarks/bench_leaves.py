@@ -9,8 +9,9 @@ from _package import load_package  # noqa: E402
 
 pkg = load_package()
 import bpy  # noqa: E402
-from samples import plain_settings
-from tree_from_video.core import pipeline
+
+from tree_from_video.core import pipeline  # noqa: E402
+from tree_from_video.core.detail.twigs import TwigParams  # noqa: E402
 from tree_from_video.operators.scene import build  # noqa: E402
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -19,8 +20,7 @@ TARGET_S = 10.0
 
 def main():
     folder = os.path.join(ROOT, "sample_videos", "broad")
-    s = plain_settings()
-    s.twigs.depth = 2
+    s = pipeline.Settings(twigs=TwigParams(depth=2), curliness=0.0, bark="none")   # as measured before
     s.leaves.cards = 1
     res = pipeline.run(os.path.join(folder, "video.mp4"), os.path.join(folder, "outline.json"), s)
     tree = pipeline.build_3d(res, s)

@@ -8,8 +8,10 @@ from __future__ import annotations
 import time
 
 import numpy as np
-from _package import load_package
+
 from tree_from_video.core.reconstruct import motion
+
+from _package import load_package
 
 
 def binary_tree(levels: int = 7, frames: int = 300, seed: int = 0):

@@ -11,8 +11,9 @@ import os
 import tempfile
 import time
 
-from _package import load_package
 from tree_from_video.core.reconstruct import skeleton2d
+
+from _package import load_package
 
 
 def main() -> None:
@@ -65,6 +66,7 @@ def main() -> None:
 def hierarchy_5000() -> float:
     """Seconds to build the hierarchy of 5,000 synthetic swaying tracks over 300 frames."""
     import numpy as np
+
     from tree_from_video.core.reconstruct import hierarchy
     from tree_from_video.core.reconstruct.tracks import Tracks
     rng = np.random.default_rng(0)

@@ -17,6 +17,7 @@ from .detail.leaf_seeds import place_leaves
 from .detail.twigs import TwigParams, add_twigs, check_twig_params
 from .envelope import envelope_to_meta
 from .errors import InputError
+from .meta import TreeMeta
 from .params import param, same_as
 from .progress import ProgressFn, sub_progress
 from .reconstruct.branch_fit import fit_to_video, measure_branches, tree_map
@@ -32,7 +33,6 @@ from .reconstruct.run import (
 from .reconstruct.run import run as run_2d
 from .reconstruct.tracks import detect_corners
 from .reconstruct.video import iter_frames
-from .meta import TreeMeta
 from .tree3d import Tree3D, image_to_plane, pipe_radii
 
 __all__ = ["SKELETON_KINDS", "Result", "Settings", "add_leaves", "build_3d", "check_settings", "first_frame",

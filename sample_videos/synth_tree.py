@@ -811,7 +811,7 @@ def build_occluder(cfg: SynthConfig) -> Occluder | None:
     spr = np.zeros((ho, wo, 3), np.uint8)
     alpha = np.zeros((ho, wo), np.uint8)
     for tgt, val in ((spr, None), (alpha, 255)):
-        def col(c):
+        def col(c, val=val):
             return val if val is not None else c
         cv2.circle(tgt, (wo // 2, int(0.1 * ho)), int(0.09 * ho), col((40, 52, 70)), -1)
         cv2.rectangle(tgt, (int(0.12 * wo), int(0.19 * ho)), (int(0.88 * wo), int(0.6 * ho)),

@@ -12,7 +12,8 @@ With the bpy wheel in a venv holding the zip's wheels, the add-on folder extract
 
 Checks that the add-on is enabled (Blender) or registers (wheel), runs the public API on the
 sample (``api.reconstruct(video, outline, frames="0:24")``, ``api.build_3d`` and
-``api.build_tree(bpy.context, tree, "T")``), and asserts an armature with bones and keyframes. ``--site DIR`` also asserts scipy and cv2 were imported from DIR (the wheels).
+``api.build_tree(bpy.context, tree, "T")``), and asserts an armature with bones and keyframes.
+``--site DIR`` also asserts scipy and cv2 were imported from DIR (the wheels).
 Exits 0 on success, 1 on any failure.
 """
 from __future__ import annotations

@@ -28,8 +28,9 @@ def main(argv=None) -> int:
     load_package()
     from tree_from_video.core.generate import species
     sys.path.insert(0, os.path.join(ROOT, "tests"))
-    from samples import committed, generate, plain_settings
     from tree_from_video.core import pipeline
+
+    from samples import committed, generate, plain_settings
     work = args.work or tempfile.mkdtemp(prefix="species-")
     os.makedirs(args.out, exist_ok=True)
     for name in ("broad", "sparse", "conifer"):

@@ -1,10 +1,10 @@
 #!/usr/bin/env bash
 # The add-on in real Blenders, via ../shared/tools/real-blender:
 #  1. the Blender 4.3.2 binary (Python 3.13, numpy 2.2): tests/blender/run_in_blender.py runs the
-#     unit, registration, sample, scene-building and export tests inside Blender (FBX and glTF; this
-#     Debian build has no USD, so the USD test checks the clear "built without USD" error);
-#  2. bpy 5.3.0 as a module (Python 3.13, numpy 2.5, OpenCV 5, usd-core) in a chroot venv: the same
-#     tests plus the batch entry, USD export included.
+#     tests marked `blender` (pyproject.toml) inside Blender (FBX and glTF; this Debian build has no
+#     USD, so the USD test checks the clear "built without USD" error);
+#  2. bpy 5.3.0 as a module (Python 3.13, numpy 2.5, OpenCV 5, usd-core) in a chroot venv: the tests
+#     marked `bpy53` (those plus the batch entry, generation and silhouettes), USD export included.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 RB=../shared/tools/real-blender
@@ -84,8 +84,4 @@ if [ "$(cat "$VENV/.requirements.sha" 2>/dev/null)" != "$want" ]; then
   echo "$want" > "$VENV/.requirements.sha"
 fi
 echo "== bpy 5.3 (Python 3.13 module)"
-"$RB" run "$VENV/bin/python" -m pytest -q -p no:cacheprovider \
-  tests/test_units.py tests/test_register.py tests/test_reconstruct_op.py tests/test_sample_run.py tests/test_batch.py tests/test_batch_3d.py \
-  tests/test_scene.py tests/test_exports.py tests/test_annotation_outline.py tests/test_leaves_scene.py tests/test_twigs.py tests/test_branch_mesh.py \
-  tests/test_generate_op.py tests/test_generate_batch.py tests/test_pgm.py tests/test_growth.py tests/test_forest.py \
-  tests/test_silhouette.py tests/test_frame_evidence.py
+"$RB" run "$VENV/bin/python" -m pytest -q -p no:cacheprovider -m bpy53 tests

@@ -20,8 +20,9 @@ ALL_VARIANTS = BAR_VARIANTS + ("dense",)
 @pytest.fixture(scope="session")
 def runs(tmp_path_factory):
     """{variant: {"truth", "folder", "traced": Result, "paper": Result}} for every variant."""
-    from samples import generate, load_truth, plain_settings
     from tree_from_video.core import pipeline
+
+    from samples import generate, load_truth, plain_settings
     base = tmp_path_factory.mktemp("variants")
     out = {}
     for v in ALL_VARIANTS:

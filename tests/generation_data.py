@@ -4,8 +4,9 @@ from __future__ import annotations
 import functools
 import os
 
-from samples import committed, plain_settings
 from tree_from_video.core.generate import species
+
+from samples import committed, plain_settings
 
 
 @functools.lru_cache(maxsize=None)

@@ -4,6 +4,7 @@ from __future__ import annotations
 import os
 
 import numpy as np
+
 from tree_from_video.sample_videos import synth_tree
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))

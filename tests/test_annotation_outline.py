@@ -13,12 +13,16 @@ import os
 import bpy
 import numpy as np
 import pytest
-from samples import committed
+
 from tree_from_video.core.errors import InputError
 from tree_from_video.core.outline import polygon_to_mask
 from tree_from_video.operators import reconstruct_op
 from tree_from_video.operators.scene import annotation
+
+from samples import committed
 from trees import addon  # noqa: F401  (autouse fixture: the add-on registered per test)
+
+pytestmark = [pytest.mark.blender, pytest.mark.bpy53]
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 FIXTURE = os.path.join(HERE, "data", "annotation_outline.blend")

@@ -6,9 +6,11 @@ import os
 import bpy
 import numpy as np
 import pytest
-from samples import committed
 from test_exports import accessor, read_glb
+
 from tree_from_video import api
+
+from samples import committed
 
 pytestmark = [pytest.mark.blender, pytest.mark.bpy53]
 

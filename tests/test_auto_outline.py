@@ -6,10 +6,12 @@ import sys
 import cv2
 import numpy as np
 import pytest
-from samples import ROOT, committed
+
 from tree_from_video.core.errors import InputError
 from tree_from_video.core.reconstruct.auto_outline import auto_outline
 from tree_from_video.core.reconstruct.video import open_video
+
+from samples import ROOT, committed
 
 
 def test_auto_outline_finds_the_tree():

@@ -6,7 +6,10 @@ import sys
 
 import numpy as np
 import pytest
+
 from samples import ROOT, committed
+
+pytestmark = [pytest.mark.bpy53]
 
 BATCH = os.path.join(ROOT, "batch.py")
 VIDEO = os.path.join(committed("broad"), "video.mp4")

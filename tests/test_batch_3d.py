@@ -5,8 +5,12 @@ import sys
 
 import numpy as np
 import pytest
-from samples import ROOT, committed
+
 from tree_from_video.core.tree3d import load_tree
+
+from samples import ROOT, committed
+
+pytestmark = [pytest.mark.bpy53]
 
 BATCH = os.path.join(ROOT, "batch.py")
 VIDEO = os.path.join(committed("broad"), "video.mp4")

@@ -3,12 +3,16 @@ against the synthetic samples' true branch masks, and what they do to the built 
 import cv2
 import numpy as np
 import pytest
-from groundtruth import true_labels
-from samples import plain_settings
+
 from tree_from_video.core import pipeline
 from tree_from_video.core.reconstruct import branch_fit as bf
 from tree_from_video.core.tree3d import pipe_radii
 from tree_from_video.sample_videos import synth_tree
+
+from groundtruth import true_labels
+from samples import plain_settings
+
+pytestmark = [pytest.mark.slow]
 
 
 def _sky_with_bars(bars, h=240, w=240, jpeg=True):

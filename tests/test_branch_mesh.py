@@ -6,18 +6,22 @@ import time
 import bpy
 import numpy as np
 import pytest
+
 from tree_from_video.core import bones
 from tree_from_video.core.detail import branch_mesh as bm
 from tree_from_video.core.detail.shapes import BARK_PRESETS
 from tree_from_video.core.errors import InputError
 from tree_from_video.operators.scene import branch_mesh as scene_mesh
 from tree_from_video.operators.scene import build, materials
+
 from trees import (
     assert_closed_tubes,
     binary_tree,
     broad_tree,
     empty_scene,  # noqa: F401  (autouse fixture)
 )
+
+pytestmark = [pytest.mark.blender, pytest.mark.bpy53]
 
 
 @pytest.fixture(scope="module")

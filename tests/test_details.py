@@ -1,6 +1,7 @@
 """Details by hand: minimum-jerk curves, closed bark rings, leaf flutter."""
 import numpy as np
 import pytest
+
 from tree_from_video.core.detail import shapes as details
 
 

@@ -10,8 +10,10 @@ import time
 import bpy
 import numpy as np
 import pytest
+
 from tree_from_video.core.errors import InputError
 from tree_from_video.operators.scene import build, export
+
 from trees import (
     broad_tree,
     empty_scene,  # noqa: F401  (autouse fixture)
@@ -20,6 +22,8 @@ from trees import (
     pose_tails,
     tree_height,
 )
+
+pytestmark = [pytest.mark.blender, pytest.mark.bpy53]
 
 FRAMES = 60
 

@@ -4,8 +4,11 @@ import warnings
 import numpy as np
 import pytest
 from scipy.spatial.distance import pdist
+
 from tree_from_video.core.errors import Cancelled, InputError
 from tree_from_video.core.generate import envelopes, forest, growth, species
+
+pytestmark = [pytest.mark.bpy53]
 
 
 def test_scatter_area_spacing_bounds_determinism():

@@ -3,10 +3,14 @@ background, and the traced skeleton against the truth with and without them."""
 import cv2
 import numpy as np
 import pytest
-from groundtruth import score
+
 from tree_from_video.core.reconstruct.branch_fit import TreeMap
 from tree_from_video.core.reconstruct.frame_evidence import frame_evidence
 from tree_from_video.core.reconstruct.trace import TraceParams, traced_skeleton
+
+from groundtruth import score
+
+pytestmark = [pytest.mark.bpy53]
 
 SKY, BARK, LEAF = (225, 170, 110), (40, 70, 110), (50, 150, 60)       # BGR
 

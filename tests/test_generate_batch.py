@@ -10,12 +10,14 @@ import os
 import cv2
 import numpy as np
 import pytest
-from samples import committed
 from scipy.io import wavfile
+
 from tree_from_video import cli as batch
 from tree_from_video.core.envelope import envelope_from_meta
 from tree_from_video.core.generate import envelopes
 from tree_from_video.core.tree3d import load_tree
+
+from samples import committed
 
 VIDEO = os.path.join(committed("broad"), "video.mp4")
 OUTLINE = os.path.join(committed("broad"), "outline.json")
@@ -38,7 +40,10 @@ def _inside(poly, pts, tol):
 
 
 from test_exports import accessor, read_glb  # noqa: E402  (the same GLB container checks)
-from tree_from_video.core.generate import features, species
+
+from tree_from_video.core.generate import features, species  # noqa: E402
+
+pytestmark = [pytest.mark.blender, pytest.mark.bpy53]
 
 # ----------------------------------------------------------------------------- mode (a): a species
 

@@ -7,11 +7,15 @@ import os
 import bpy
 import numpy as np
 import pytest
+
 from tree_from_video.core.generate import envelopes, species
+
 from trees import (
     broad_tree,
     empty_scene,  # noqa: F401  (autouse fixture)
 )
+
+pytestmark = [pytest.mark.blender, pytest.mark.bpy53]
 
 
 @pytest.fixture(autouse=True, scope="module")
@@ -25,7 +29,7 @@ def registered():
 def last_tree() -> dict:
     """The live ``LAST_TREE`` of reconstruct_op: unregistering deletes the operator modules from
     sys.modules (register_submodule_factory), so a module imported at collection time may be stale."""
-    from tree_from_video.operators import reconstruct_op     # looked up in sys.modules now, not at collection
+    from tree_from_video.operators import reconstruct_op  # looked up in sys.modules now, not at collection
     return reconstruct_op.LAST_TREE
 
 

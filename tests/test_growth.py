@@ -4,8 +4,8 @@ frequencies, wind and audio, Tree3D conventions, speed."""
 import cv2
 import numpy as np
 import pytest
-from generation_data import source_model, source_tree
 from scipy.io import wavfile
+
 from tree_from_video.core import bones
 from tree_from_video.core.envelope import envelope_from_meta
 from tree_from_video.core.errors import Cancelled, InputError
@@ -19,6 +19,10 @@ from tree_from_video.core.generate import (
 )
 from tree_from_video.core.topology import branching_level
 from tree_from_video.core.tree3d import pipe_radii
+
+from generation_data import source_model, source_tree
+
+pytestmark = [pytest.mark.bpy53]
 
 
 @pytest.fixture(scope="module")

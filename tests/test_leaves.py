@@ -2,9 +2,12 @@
 import cv2
 import numpy as np
 import pytest
+
 from tree_from_video.core.detail import leaf_clusters, leaf_seeds
 from tree_from_video.core.reconstruct import lift
 from tree_from_video.core.reconstruct.tracks import TrackParams, detect_corners
+
+pytestmark = [pytest.mark.slow]
 
 
 def _leaf_frame(seed=0, n=160, size=(360, 480)):
@@ -108,8 +111,9 @@ def test_flutter_amplitude_by_hand():
 @pytest.fixture(scope="module")
 def leafy(runs):
     """The broad sample's reconstruction with leaf clusters (density 1 and 0.5)."""
-    from samples import plain_settings
     from tree_from_video.core import pipeline
+
+    from samples import plain_settings
     res = runs["broad"]["traced"]
     full = pipeline.build_3d(res, plain_settings())
     s = plain_settings()
@@ -222,11 +226,13 @@ def test_clusters_sit_on_the_true_tufts(runs):
     """Sparse sample (small tufts on bare twigs): leaf clusters near a true tuft are centred on it.
     Measured: median offset (-0.1, 0.5) px; (-2.3, -0.1) px while the leaves were placed from the
     trunk base as it was before the branch fit moved it onto its centre line."""
-    from groundtruth import true_labels
     from scipy.spatial import cKDTree
+
     from tree_from_video.core import pipeline
     from tree_from_video.core.tree3d import plane_to_image
     from tree_from_video.sample_videos import synth_tree as st
+
+    from groundtruth import true_labels
     from samples import plain_settings
     tree = pipeline.build_3d(runs["sparse"]["traced"], plain_settings())
     lab = true_labels("sparse")

@@ -6,15 +6,19 @@ import os
 import bpy
 import numpy as np
 import pytest
-from samples import plain_settings
+
 from tree_from_video.core import pipeline
 from tree_from_video.core.detail import leaf_clusters
 from tree_from_video.operators.scene import action_api, build, export, leaves, materials
+
+from samples import plain_settings
 from trees import (
     ROOT,
     empty_scene,  # noqa: F401  (autouse fixture)
     tree_height,
 )
+
+pytestmark = [pytest.mark.blender, pytest.mark.bpy53]
 
 FRAMES = 60
 
@@ -197,6 +201,7 @@ def _qmul(a, b):
 
 def test_a_users_leaf_image_is_packed_and_a_bad_one_is_refused(tree, tmp_path):
     import cv2
+
     from tree_from_video.core.errors import InputError
     img = np.zeros((32, 16, 4), np.uint8)
     img[4:28, 4:12] = (40, 160, 60, 255)                  # BGRA: a green blade

@@ -3,10 +3,14 @@ import numpy as np
 import pytest
 import report
 from conftest import BAR_VARIANTS
-from motion_metrics import motion_scores
+
 from tree_from_video.core import rotations
 from tree_from_video.core.reconstruct import lift, motion
 from tree_from_video.core.tree3d import image_to_plane
+
+from motion_metrics import motion_scores
+
+pytestmark = [pytest.mark.slow]
 
 
 @pytest.fixture(scope="session")

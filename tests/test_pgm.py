@@ -5,11 +5,15 @@ import os
 
 import numpy as np
 import pytest
-from generation_data import source_model, source_tree
 from scipy.special import digamma
+
 from tree_from_video.core.errors import InputError
 from tree_from_video.core.generate import dirichlet, features, species
 from tree_from_video.core.tree3d import Tree3D
+
+from generation_data import source_model, source_tree
+
+pytestmark = [pytest.mark.bpy53]
 
 PARAMS = {
     "moderate": [2.0, 5.0, 3.0],

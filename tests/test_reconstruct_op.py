@@ -5,11 +5,15 @@ import time
 import bpy
 import numpy as np
 import pytest
+
 import tree_from_video
-from samples import committed, plain_settings
 from tree_from_video.core.job import Job
 from tree_from_video.operators import jobs, reconstruct_op
+
+from samples import committed, plain_settings
 from trees import addon  # noqa: F401  (autouse fixture: the add-on registered per test)
+
+pytestmark = [pytest.mark.blender, pytest.mark.bpy53]
 
 VIDEO = os.path.join(committed("broad"), "video.mp4")
 OUTLINE = os.path.join(committed("broad"), "outline.json")
@@ -115,8 +119,9 @@ def test_unregister_stops_running_jobs():
 
 
 def test_preview_keeps_tracks_and_skeleton_for_the_clip_editor(addon):
-    from samples import load_truth
     from tree_from_video.operators.scene import clip_overlay
+
+    from samples import load_truth
     addon.video_path, addon.outline_path = VIDEO, OUTLINE
     addon.use_frame_range, addon.frame_start, addon.frame_end = True, 10, 40
     before = _ids()

@@ -1,6 +1,10 @@
 """The add-on registers, unregisters and registers again (bpy wheel, and inside real Blender)."""
 import bpy
+import pytest
+
 import tree_from_video
+
+pytestmark = [pytest.mark.blender, pytest.mark.bpy53]
 
 
 def _classes():

@@ -7,10 +7,14 @@ import os
 
 import numpy as np
 import pytest
-from groundtruth import score
-from samples import committed, load_truth, plain_settings
+
 from tree_from_video.core import pipeline
 from tree_from_video.core.reconstruct import skeleton_io
+
+from groundtruth import score
+from samples import committed, load_truth, plain_settings
+
+pytestmark = [pytest.mark.blender, pytest.mark.bpy53]
 
 
 @pytest.fixture(scope="module")

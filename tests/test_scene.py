@@ -5,11 +5,13 @@ import math
 import bpy
 import numpy as np
 import pytest
+
 from tree_from_video.core import bones, rotations
 from tree_from_video.core.detail.branch_mesh import branch_radii
 from tree_from_video.core.errors import InputError
 from tree_from_video.core.tree3d import Tree3D
 from tree_from_video.operators.scene import action_api, armature, branch_mesh, build, objects
+
 from trees import (
     assert_closed_tubes,
     binary_tree,
@@ -19,6 +21,8 @@ from trees import (
     pose_tails,
     tree_height,
 )
+
+pytestmark = [pytest.mark.blender, pytest.mark.bpy53]
 
 S2 = math.sqrt(0.5)
 
@@ -124,7 +128,7 @@ def test_build_bones_keys_and_scene_timing(tree):
     bones = rig.data.bones
     assert len(bones) == len(edges) == tree.n_nodes - 1
     bone_of_node = {int(c): f"B{c:03d}" for c in edges[:, 1]}
-    for (p, c), name in zip(edges, names):
+    for (p, _), name in zip(edges, names):
         b = bones[name]
         want_parent = bone_of_node.get(int(p))
         assert (b.parent.name if b.parent else None) == want_parent
@@ -309,8 +313,9 @@ def test_solver_output_builds_and_poses_exactly():
     and channel, and the evaluated pose equals the solver's nodes within 1e-4 of the height."""
     import os
 
-    from samples import plain_settings
     from tree_from_video.core import pipeline
+
+    from samples import plain_settings
     from trees import ROOT
     folder = os.path.join(ROOT, "sample_videos", "broad")
     res = pipeline.run(os.path.join(folder, "video.mp4"), os.path.join(folder, "outline.json"),

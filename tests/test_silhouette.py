@@ -8,11 +8,15 @@ import cv2
 import numpy as np
 import pytest
 import report
-from groundtruth import true_labels
+
 from tree_from_video.core import pipeline
 from tree_from_video.operators.scene import build
 from tree_from_video.sample_videos import synth_tree
+
+from groundtruth import true_labels
 from trees import empty_scene  # noqa: F401  (autouse fixture)
+
+pytestmark = [pytest.mark.bpy53, pytest.mark.slow]
 
 #: measured (traced skeleton, the default look: twigs 2, curliness 0.3, rough bark, leaves, branch
 #: widths and centre lines fitted to frame 1 and tapered, the trace also on frame 1's own pixels,

@@ -8,9 +8,13 @@ within 0.1 Hz.
 import numpy as np
 import pytest
 from conftest import ALL_VARIANTS, BAR_VARIANTS
-from groundtruth import score
 from scipy.spatial import cKDTree
+
 from tree_from_video.core.topology import children_lists
+
+from groundtruth import score
+
+pytestmark = [pytest.mark.slow]
 
 
 def test_every_variant_is_scored_with_both_skeletons(scores):

@@ -8,7 +8,10 @@ import os
 import re
 
 import pytest
+
 from samples import ROOT, plain_settings
+
+pytestmark = [pytest.mark.blender, pytest.mark.bpy53]
 
 PACKAGE = "tree_from_video"
 SKIP = {".venv", ".git", "dist", "wheels", "out", "__pycache__", "tests", "benchmarks", "scripts", "sample_videos"}
@@ -205,11 +208,11 @@ def test_every_key_a_tree_carries_is_documented_and_every_read_key_is_written():
     a tree saved and loaded again carry only documented keys; every key a stage reads is among
     what they carry."""
     from tree_from_video.core import pipeline
+    from tree_from_video.core.detail.twigs import TwigParams
     from tree_from_video.core.generate import growth, species
     from tree_from_video.core.generate.envelopes import envelope_from_any
     from tree_from_video.core.meta import KEYS
     from tree_from_video.core.tree3d import load_tree, save_tree
-    from tree_from_video.core.detail.twigs import TwigParams
     video = os.path.join(ROOT, "sample_videos", "broad")
     s = plain_settings(frames="0:24", twigs=TwigParams(depth=1))
     res = pipeline.run(os.path.join(video, "video.mp4"), os.path.join(video, "outline.json"), s)

@@ -5,12 +5,16 @@ import math
 
 import numpy as np
 import pytest
+
 from tree_from_video.core import bones, rotations
 from tree_from_video.core.detail import twigs as tw
 from tree_from_video.core.envelope import Envelope, envelope_from_meta, envelope_to_meta
 from tree_from_video.core.errors import InputError
 from tree_from_video.core.tree3d import Tree3D
+
 from trees import binary_tree, broad_tree
+
+pytestmark = [pytest.mark.blender, pytest.mark.bpy53]
 
 
 @pytest.fixture(scope="module")
@@ -210,8 +214,9 @@ def test_pipeline_adds_twigs_after_the_motion_inside_the_envelope():
     reconstructed nodes, twigs appended inside the solver's envelope, the mesh settings in meta."""
     import os
 
-    from samples import plain_settings
     from tree_from_video.core import pipeline
+
+    from samples import plain_settings
     from trees import ROOT
     folder = os.path.join(ROOT, "sample_videos", "broad")
     s = plain_settings(frames="0:30")
@@ -270,6 +275,7 @@ def test_fbx_with_twigs_reimports_their_bones_animated(blender, twiggy, tmp_path
     """FBX stores joints, not tails: a re-imported bone without children gets a guessed length, so
     heads and directions are compared (generation-2 heads are generation-1 tails)."""
     from tree_from_video.operators.scene import build, export
+
     from trees import expected, pose_heads_dirs, tree_height
     tree, N = twiggy
     built = build.build_tree(blender.context, tree, "Tree", curliness=0.5, bark="rough")
@@ -299,6 +305,7 @@ def test_fbx_with_twigs_reimports_their_bones_animated(blender, twiggy, tmp_path
 
 def test_gltf_with_twigs_has_their_joints_and_rotation_keys(blender, twiggy, tmp_path):
     from test_exports import accessor, read_glb
+
     from tree_from_video.operators.scene import build, export
     tree, N = twiggy
     built = build.build_tree(blender.context, tree, "Tree")

@@ -3,8 +3,11 @@ import cv2
 import numpy as np
 import pytest
 import scipy.sparse as sp
+
 from tree_from_video.core.reconstruct import hierarchy, skeleton2d
 from tree_from_video.core.reconstruct import tracks as trk
+
+pytestmark = [pytest.mark.blender, pytest.mark.bpy53]
 
 
 def _two_blobs(n=60, seed=0):

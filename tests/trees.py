@@ -5,6 +5,7 @@ import os
 
 import numpy as np
 import pytest
+
 from tree_from_video.core import bones
 from tree_from_video.core.tree3d import Tree3D
 
@@ -118,6 +119,7 @@ def addon():
     """The add-on registered in an empty factory scene for each test; yields ``scene.tree_video``
     (import it into the module, like :func:`empty_scene`)."""
     import bpy
+
     import tree_from_video
     bpy.ops.wm.read_factory_settings(use_empty=True)
     tree_from_video.register()

@@ -31,8 +31,8 @@ class LeafParams:
     ``cards`` leaf cards (quads) per cluster; ``coverage`` cluster radius as a multiple of the
     median spacing between kept seeds; ``flutter_hz`` ω / 2π; ``flutter_gain`` seconds:
     amplitude A(t) = gain · branch speed(t) / tree height, radians, at most
-    ``flutter_max_deg`` (a tracking glitch must not spin a cluster); ``leaf_hz`` / ``leaf_angle_deg`` every leaf's own flap about its stem
-    (phase per leaf); ``fill`` adds seeds where the
+    ``flutter_max_deg`` (a tracking glitch must not spin a cluster); ``leaf_hz`` / ``leaf_angle_deg``
+    every leaf's own flap about its stem (phase per leaf); ``fill`` adds seeds where the
     crown shows foliage colour but no corner (:func:`fill_seeds`); ``seed`` sub-sampling, depths
     and template."""
 

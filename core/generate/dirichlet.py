@@ -178,7 +178,7 @@ def fit_dirichlet(X: np.ndarray, max_iter: int = 2000, fixed_mean: np.ndarray | 
     hist = [dirichlet_loglik(alpha, mean_log)]
     it = 0
     capped = False
-    for it in range(1, max_iter + 1):
+    for it in range(1, max_iter + 1):  # noqa: B007  (read after the loop)
         # Minka's fixed point: α_k ← ψ⁻¹(ψ(Σα) + mean log z_k)  (never lowers the likelihood)
         new = inv_digamma(digamma(alpha.sum()) + mean_log)
         ll = dirichlet_loglik(new, mean_log)

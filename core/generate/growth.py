@@ -7,8 +7,9 @@
    ``⟨L1:L2:L3⟩`` from the model's Dirichlets and a turning sense ``s = ±1`` (clockwise with
    the example's share ``mirror_p``), so the continuing child leaves ``i`` at ``β + s·2πθ1`` and
    the side child at ``β + s·2π(θ1 + θ2)`` (β the direction back to ``j``; see
-   :func:`.features.canonical_angles`) with lengths ``L1·L2/L1`` and ``L1·L3/L1``. The growing direction is a 1-D search over a rotation
-   φ of the pair about the view axis (L candidates in ±``max_turn``, keeping every angle ≥ 10°),
+   :func:`.features.canonical_angles`) with lengths ``L1·L2/L1`` and ``L1·L3/L1``. The growing
+   direction is a 1-D search over a rotation φ of the pair about the view axis (L candidates in
+   ±``max_turn``, keeping every angle ≥ 10°),
    maximizing, as in the lift (Eq. 2–6 in 2D),
 
        p(φ) ∝ exp(−φ² / 2σ²) · E(φ) / Σ_l E(φ_l) · [both branches inside Ω']
@@ -40,12 +41,12 @@ import numpy as np
 
 from ..envelope import Envelope
 from ..errors import InputError
+from ..meta import TreeMeta
 from ..outline import Outline, polygon_to_mask
 from ..progress import ProgressFn, report, sub_progress
 from ..reconstruct.lift import LiftParams, lift
 from ..reconstruct.skeleton2d import Skeleton2D
 from ..topology import branching_level
-from ..meta import TreeMeta
 from ..tree3d import Tree3D, pipe_radii
 from .envelopes import Region2D, envelope_meta, region_of
 from .species import SpeciesModel

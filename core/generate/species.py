@@ -164,7 +164,8 @@ class SpeciesModel:
                         motion, float(sh["trunk_frac"]), float(sh["segment_frac"]),
                         float(sh["segments_per_branch"]), float(sh["min_branch_frac"]),
                         float(sh["branch_frac"]), int(sh["n_bifurcations"]),
-                        _orientation(sh["orientation_deg"]), float(np.clip(float(sh["mirror_p"]), 0.0, 1.0)), float(src["height_m"]), float(src["fps"]),
+                        _orientation(sh["orientation_deg"]), float(np.clip(float(sh["mirror_p"]), 0.0, 1.0)),
+                        float(src["height_m"]), float(src["fps"]),
                         int(src["n_frames"]), bool(d.get("conifer", False)), float(sh.get("mu_deg", 38.0)),
                         ver, list(d.get("fallbacks", [])), _leaf_info(d.get("leaves")))
         except (KeyError, TypeError, ValueError) as exc:

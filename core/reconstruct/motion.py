@@ -38,7 +38,6 @@ from ..progress import ProgressFn, report
 from ..rotations import rodrigues
 from ..topology import chains, children_lists, topological_order
 
-
 SOLVERS = ("probabilistic", "deterministic")
 
 @dataclass

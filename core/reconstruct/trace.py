@@ -129,7 +129,9 @@ def grid_graph(cost: np.ndarray, inside: np.ndarray) -> sp.csr_matrix:
         a, b = idx[ys, xs], idx[ys2, xs2]
         ok = inside[ys, xs] & inside[ys2, xs2]
         c = 0.5 * (cost[ys, xs] + cost[ys2, xs2]) * np.hypot(dy, dx)
-        rows.append(a[ok]); cols.append(b[ok]); wts.append(c[ok])
+        rows.append(a[ok])
+        cols.append(b[ok])
+        wts.append(c[ok])
     r, c, wv = np.concatenate(rows), np.concatenate(cols), np.concatenate(wts)
     g = sp.coo_matrix((wv, (r, c)), shape=(h * w, h * w)).tocsr()
     return g + g.T

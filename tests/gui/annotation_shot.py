@@ -13,8 +13,9 @@ import sys
 import bpy
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))   # this folder: _addon.py
-from _addon import ROOT, register_with_sample  # noqa: E402
 from make_annotation_fixture import _dense, _draw  # noqa: E402
+
+from _addon import ROOT, register_with_sample  # noqa: E402
 
 props = register_with_sample()
 props.outline_source = "ANNOTATION"
