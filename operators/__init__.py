@@ -4,4 +4,5 @@ one ``classes`` tuple, registered here in this order), the modal-job base they s
 batch outputs, the clip overlay, the annotation outline)."""
 import bpy
 
-register, unregister = bpy.utils.register_submodule_factory(__name__, ["skeleton_op", "reconstruct_op", "export_op", "generate_op"])
+register, unregister = bpy.utils.register_submodule_factory(
+    __name__, ["skeleton_op", "reconstruct_op", "export_op", "generate_op"])
