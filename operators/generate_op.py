@@ -168,7 +168,7 @@ class TREE_OT_generate(jobs.JobOperator, bpy.types.Operator):
 
 
 class TREE_OT_generate_forest(jobs.JobOperator, bpy.types.Operator):
-    """Scatter distinct animated trees of the species on the ground mesh (or an area at the 3D cursor), Poisson-disk spaced, each swaying with its own phase (Esc cancels)"""
+    """Scatter distinct animated trees of the species on the ground mesh (or an area at the 3D cursor), Poisson-disk spaced, each swaying with its own phase (Esc cancels)"""  # noqa: E501  (the tooltip)
 
     bl_idname = "tree_video.generate_forest"
     bl_label = "Generate Forest"
@@ -263,7 +263,7 @@ class TREE_OT_generate_forest(jobs.JobOperator, bpy.types.Operator):
 
 
 class TREE_OT_save_species(bpy.types.Operator):
-    """Fit the species model (Dirichlet bifurcation ratios and motion spectra) to the last reconstruction and save it as a shareable .json"""
+    """Fit the species model (Dirichlet bifurcation ratios and motion spectra) to the last reconstruction and save it as a shareable .json"""  # noqa: E501  (the tooltip)
 
     bl_idname = "tree_video.save_species"
     bl_label = "Save Species"

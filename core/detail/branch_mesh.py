@@ -1,4 +1,4 @@
-"""Geometry of the skinned branch mesh (pure numpy; ``operators/scene_build.py`` puts it in Blender).
+"""Geometry of the skinned branch mesh (pure numpy; ``operators/scene/branch_mesh.py`` puts it in Blender).
 
 One closed tube per bone, ``K`` rings of ``S`` vertices each, capped at both ends:
 

@@ -1,6 +1,6 @@
 """The batch job's generation flow (``batch.py --generate N``): N new animated trees of one species,
 each in its own folder, and a ``generated.json`` index. No Blender here: the caller passes a
-``write_files(tree, folder)`` that builds the tree in a scene and exports it (``operators/outputs``).
+``write_files(tree, folder)`` that builds the tree in a scene and exports it (``operators/scene/outputs``).
 
 Layout of ``DIR`` (``FOLDER_FORMAT``):
 

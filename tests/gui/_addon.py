@@ -1,21 +1,18 @@
 """For the GUI scripts run inside Blender (``blender --python tests/gui/<script>.py``): load the
 repository as the add-on ``tree_from_video``, register it, point it at the committed sample."""
-import importlib.util
 import os
 import sys
 
 import bpy
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+sys.path.insert(0, ROOT)
+from package_loader import load_package  # noqa: E402
 
 
 def register_with_sample():
     """Register the add-on from the repo; return ``scene.tree_video`` set to sample_videos/broad."""
-    spec = importlib.util.spec_from_file_location("tree_from_video", os.path.join(ROOT, "__init__.py"),
-                                                  submodule_search_locations=[ROOT])
-    pkg = importlib.util.module_from_spec(spec)
-    sys.modules["tree_from_video"] = pkg
-    spec.loader.exec_module(pkg)
+    pkg = load_package()
     pkg.register()
     bpy.context.preferences.view.show_splash = False
     props = bpy.context.scene.tree_video
