@@ -81,7 +81,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="3D motion solver (default probabilistic, paper §4; deterministic: sphere/line-of-sight "
                         "baseline)")
     p.add_argument("--height", type=float, default=_default(S, "height_m"),
-                   help="tree height in the scene, metres (default %(default)s)")
+                   help=f"tree height in the scene, metres, {_range(S, 'height_m')} (default %(default)s)")
     p.add_argument("--twigs", type=int, default=_default(TwigParams, "depth"), metavar="DEPTH",
                    help=f"generations of twigs copied from the tree's own forks, {_range(TwigParams, 'depth')} "
                         "(default %(default)s; 0: none)")

@@ -80,3 +80,68 @@ def test_ranged_needs_a_value_inside_an_open_bound():
         ranged(ReconstructSettings, "levels", open_min=1)
     with pytest.raises(ValueError, match="outside the core's range"):
         ranged(ReconstructSettings, "levels", soft_max=12)
+
+
+# ----------------------------------------------------------------------------- the batch options
+
+#: batch option (argparse dest) → (core dataclass, field); the generation options too
+CLI_FIELDS = {
+    "levels": ("ReconstructSettings", "levels"), "skeleton": ("ReconstructSettings", "skeleton"),
+    "scale": ("ReconstructSettings", "scale"), "solver": ("MotionParams", "solver"),
+    "height": ("Settings", "height_m"), "twigs": ("TwigParams", "depth"), "curliness": ("MeshParams", "curliness"),
+    "bark": ("MeshParams", "bark"), "leaf_density": ("LeafParams", "density"), "leaf_cards": ("LeafParams", "cards"),
+    "flutter_hz": ("LeafParams", "flutter_hz"), "wind": ("GenerateRequest", "wind"), "seed": ("GenerateRequest", "seed"),
+    "nodes": ("GenerateRequest", "nodes"),
+}
+
+
+def _core_classes():
+    from tree_from_video.core.detail.branch_mesh import MeshParams
+    from tree_from_video.core.detail.leaf_clusters import LeafParams
+    from tree_from_video.core.detail.twigs import TwigParams
+    from tree_from_video.core.generate.batch import GenerateRequest
+    from tree_from_video.core.pipeline import Settings
+    from tree_from_video.core.reconstruct.motion import MotionParams
+    from tree_from_video.core.reconstruct.run import ReconstructSettings
+    return {c.__name__: c for c in (MeshParams, LeafParams, TwigParams, GenerateRequest, Settings, MotionParams,
+                                     ReconstructSettings)}
+
+
+@pytest.mark.parametrize("dest", sorted(CLI_FIELDS))
+def test_batch_options_match_the_core(dest):
+    """Each option's default is the core's; an enum option offers exactly the core's choices; a
+    ranged option's help names the core's range."""
+    from tree_from_video import cli
+    classes = _core_classes()
+    cls_name, field = CLI_FIELDS[dest]
+    s = spec(classes[cls_name], field)
+    action = next(a for a in cli.build_parser()._actions if a.dest == dest)
+    assert action.default == s.default, (dest, action.default, s.default)
+    if s.choices:
+        assert tuple(action.choices) == s.choices
+    elif s.lo is not None and s.hi is not None:
+        assert s.describe() in action.help % {"default": action.default}, action.help
+
+
+def test_panel_cli_and_core_agree_on_every_shared_setting():
+    """The settings the panel and the batch options share start at one default: the core's."""
+    from tree_from_video import cli
+    classes = _core_classes()
+    by_field = {(cls.__name__, f): name for name, (cls, f) in CORE_FIELDS.items()}
+    args = cli.build_parser().parse_args(["v.mp4", "--outline", "o.json", "--out", "x"])
+    settings = cli.settings_from_args(args)
+    from tree_from_video.core import pipeline
+    core = pipeline.Settings()
+    shared = 0
+    for dest, (cls_name, field) in CLI_FIELDS.items():
+        panel = by_field.get((cls_name, field))
+        if panel is None:
+            continue
+        shared += 1
+        s = spec(classes[cls_name], field)
+        assert getattr(args, dest) == s.default, dest
+    assert shared >= 10
+    # the settings a batch run builds by default are the core's defaults
+    assert (settings.levels, settings.twigs.depth, settings.curliness, settings.bark, settings.height_m) == \
+        (core.levels, core.twigs.depth, core.curliness, core.bark, core.height_m)
+    assert settings.leaves == core.leaves and settings.motion == core.motion and settings.lift == core.lift

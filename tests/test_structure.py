@@ -63,6 +63,20 @@ def graph() -> dict[str, set[str]]:
     return {m: imports_of(m, p, known) for m, p in files.items()}
 
 
+def test_every_relative_import_names_a_module_of_the_package():
+    """A mistyped relative import inside a function only fails when that code runs: find it here."""
+    files = package_files()
+    bad = []
+    for module, path in files.items():
+        here = module.split(".") if path.endswith("__init__.py") else module.split(".")[:-1]
+        for node in ast.walk(ast.parse(open(path, encoding="utf-8").read())):
+            if isinstance(node, ast.ImportFrom) and node.level:
+                target = ".".join(here[:len(here) - node.level + 1] + ([node.module] if node.module else []))
+                if target not in files:
+                    bad.append((os.path.relpath(path, ROOT), node.lineno, target))
+    assert not bad, bad
+
+
 def test_the_stages_are_subpackages_of_core():
     core = os.path.join(ROOT, "core")
     for stage in ("reconstruct", "detail", "generate"):

@@ -100,7 +100,7 @@ def run(video: str, outline_path, settings: ReconstructSettings | None = None,
     info = open_video(video, s.scale)
     start, stop = parse_frame_range(s.frames, info.frame_count)
     if isinstance(outline_path, str) and outline_path == "auto":
-        from .reconstruct.auto_outline import auto_outline
+        from .auto_outline import auto_outline
         outline = auto_outline(info, start)
     elif isinstance(outline_path, (str, os.PathLike)):
         outline = load_outline(outline_path, info.width, info.height, s.scale)
