@@ -49,8 +49,8 @@ def export_gltf(path: str | os.PathLike, objects: Iterable[bpy.types.Object], *,
                 context=None) -> str:
     """Write ``objects`` to a binary glTF ``path`` (``.glb``) and return the path.
 
-    One skin (every bone a joint), the rig's current action sampled at every frame (no
-    optimisation that would drop constant keys), times starting at 0 s
+    One skin (every bone a joint), the rig's current action sampled at every frame and no other
+    action of the file (no optimisation that would drop constant keys), times starting at 0 s
     (``export_anim_slide_to_zero``, where this Blender's exporter has it)."""
     options = dict(export_format="GLB", use_selection=True, export_animations=True,
                    export_animation_mode="ACTIVE_ACTIONS", export_frame_range=True, export_frame_step=1,
@@ -58,7 +58,12 @@ def export_gltf(path: str | os.PathLike, objects: Iterable[bpy.types.Object], *,
                    export_optimize_animation_size=False, export_optimize_animation_keep_anim_armature=True,
                    export_optimize_animation_keep_anim_object=False, export_def_bones=False,
                    export_leaf_bone=False, export_skins=True, export_apply=False, export_yup=True,
-                   export_cameras=False, export_lights=False, export_extras=False)
+                   export_cameras=False, export_lights=False, export_extras=False,
+                   # with one armature exported, this option (default on) adds every armature action
+                   # in the file: in ACTIVE_ACTIONS mode they are merged by bone name, so a
+                   # reconstruction exported after Generate carried the generated tree's rotations
+                   # (Blender 4.3: quaternion components off by up to 1.9, the other tree's key count)
+                   export_anim_single_armature=False)
     return _export("glTF", bpy.ops.export_scene, "gltf", path, (".glb",), objects, options, overwrite, context)
 
 
