@@ -83,6 +83,10 @@ def _bad_inputs(tmp):
         "outline outside": ([VIDEO, "--outline", outline("out.json", [[1000, 1000], [1100, 1000], [1100, 1100]])], "outside"),
         "outline mask blank": ([VIDEO, "--outline", blank], "empty"),
         "out is a file": ([VIDEO, "--outline", OUTLINE, "--out", afile / "sub"], "--out"),
+        # as root os.access says yes where makedirs fails: refused before any work (no progress line)
+        "out cannot be created": ([VIDEO, "--outline", OUTLINE, "--out", "/proc/tfv-out/x"], "cannot be created"),
+        "generate out cannot be created": (["--generate", "2", "--species", "broad", "--out", "/proc/tfv-out"],
+                                           "cannot be created"),
         "unknown option": ([VIDEO, "--outline", OUTLINE, "--bogus"], "unrecognized"),
         "bad frames": ([VIDEO, "--outline", OUTLINE, "--frames", "5"], "frame range"),
         "bad levels": ([VIDEO, "--outline", OUTLINE, "--levels", "1"], "levels"),
@@ -93,7 +97,7 @@ def _bad_inputs(tmp):
 BAD_CASES = [
     "missing video", "unreadable video", "zero-frame video", "missing outline", "outline not json",
     "outline empty", "outline degenerate", "outline outside", "outline mask blank", "out is a file",
-    "unknown option", "bad frames", "bad levels", "bad scale"]
+    "out cannot be created", "generate out cannot be created", "unknown option", "bad frames", "bad levels", "bad scale"]
 
 
 @pytest.mark.parametrize("case", BAD_CASES)
