@@ -18,7 +18,7 @@ from ...core import bones
 from ...core.detail import branch_mesh as bm
 from ...core.errors import InputError
 from ...core.tree3d import Tree3D
-from . import armature, branch_mesh, objects, timing
+from . import armature, branch_mesh, objects, timing, trees
 from . import leaves as leaf_build  # build_tree has the parameters "leaves" and "materials"
 from . import materials as mats
 from .objects import Created, deselect_all
@@ -75,6 +75,7 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
         if context.mode != "OBJECT" and context.active_object is not None:
             bpy.ops.object.mode_set(mode="OBJECT")
         coll = created.add(bpy.data.collections, bpy.data.collections.new(collection_name))
+        trees.mark(coll)                  # Export and the tree lists find it by this mark
         scene.collection.children.link(coll)
 
         t = time.perf_counter()
