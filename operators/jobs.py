@@ -1,5 +1,5 @@
 """The modal-job base of the operators that run the core in a worker thread (Reconstruct, Track &
-Preview, Generate Tree, Generate Forest).
+Preview, Generate Tree, Generate Forest) or main-thread work in slices (:class:`SteppedJob`: Export).
 
 :class:`JobOperator` starts a :class:`core.job.Job` and polls it on a timer (``invoke``) or runs it
 blocking (``execute``: scripts, background mode), then calls the operator's ``done`` on the main
@@ -8,6 +8,8 @@ thread. While it runs, :func:`status` shows the stage in the status bar and the 
 under way. :func:`cancel_all` (unregister) leaves no thread behind.
 """
 from __future__ import annotations
+
+import traceback
 
 from ..core.errors import InputError
 from ..core.job import Job
@@ -28,6 +30,8 @@ class JobOperator:
     _job: Job | None = None
     _timer = None
     what = "reconstruction"
+    #: what a cancelled job leaves, for its message
+    cancelled_note = "the scene is unchanged"
 
     def make_job(self, context) -> Job:
         raise NotImplementedError
@@ -63,10 +67,12 @@ class JobOperator:
             job.cancel()
             job.join(timeout=5.0)
             self._cleanup(context)
-            self.report({"INFO"}, f"{self.what} cancelled; the scene is unchanged")
+            self.report({"INFO"}, f"{self.what} cancelled; {self.cancelled_note}")
             return {"CANCELLED"}
         if event.type != "TIMER":
             return {"PASS_THROUGH"}
+        if isinstance(job, SteppedJob):
+            job.tick()
         status(context, job.stage, job.fraction)
         context.window_manager.progress_update(int(100 * job.fraction))
         if not job.done:
@@ -76,7 +82,7 @@ class JobOperator:
 
     def _finish(self, context, job: Job):
         if job.cancelled:
-            self.report({"INFO"}, f"{self.what} cancelled; the scene is unchanged")
+            self.report({"INFO"}, f"{self.what} cancelled; {self.cancelled_note}")
             return {"CANCELLED"}
         if job.error:
             if job.details:
@@ -95,6 +101,56 @@ class JobOperator:
         if CANCEL_FLAG in wm:
             del wm[CANCEL_FLAG]
         status(context, "", 0.0)
+
+
+class SteppedJob:
+    """Work that must run on the main thread (exporter operators), sliced into steps: ``steps`` is a
+    generator that yields ``(stage, fraction)`` before each slice and returns the result.
+
+    It has :class:`core.job.Job`'s surface (``stage``, ``fraction``, ``done``, ``result`` /
+    ``error`` / ``cancelled``, ``cancel``, ``join``), so :class:`JobOperator` drives it: one slice
+    per timer tick (``invoke``, Blender redraws in between) or all at once (``execute``).
+    ``cancel()`` closes the generator (its ``finally`` clean-up runs) before the next slice."""
+
+    def __init__(self, steps):
+        self._steps = steps
+        self.stage = "starting"
+        self.fraction = 0.0
+        self.result = None
+        self.error: str | None = None
+        self.details = ""
+        self.cancelled = False
+        self.done = False
+
+    def start(self) -> "SteppedJob":
+        return self
+
+    def run_here(self) -> "SteppedJob":
+        while not self.done:
+            self.tick()
+        return self
+
+    def tick(self) -> None:
+        """Run the next slice (returns at the generator's next ``yield``)."""
+        if self.done:
+            return
+        try:
+            self.stage, self.fraction = next(self._steps)
+        except StopIteration as stop:
+            self.result, self.done = stop.value, True
+        except InputError as exc:
+            self.error, self.done = str(exc), True
+        except Exception as exc:  # internal error: keep the traceback for the report
+            self.error = f"internal error ({exc.__class__.__name__}: {exc}); please report it"
+            self.details, self.done = traceback.format_exc(), True
+
+    def cancel(self) -> None:
+        if not self.done:
+            self._steps.close()
+            self.cancelled = self.done = True
+
+    def join(self, timeout: float | None = None) -> bool:
+        return True
 
 
 def running() -> bool:
