@@ -212,15 +212,23 @@ def test_usd_skeleton_and_animation_or_a_clear_error(tree, built, tmp_path):
 def _validate_usd(stage):
     """Every ``pxr.UsdValidation`` validator that can run here reports no error.
 
-    usd-core's wheel lacks the shader definitions that ``ShaderSdrCompliance`` loads, so that one
-    raises instead of validating: it is listed, not counted. The validators are shown to work by
+    usd-core's wheel lacks the shader definitions (``shaderDefs.usda``) that ``ShaderSdrCompliance``
+    checks against: with an empty shader registry it raises the first time and then reports every
+    UsdPreviewSurface as unknown, so it is listed, not run. The validators are shown to work by
     flagging a stage that lacks the required metadata."""
-    from pxr import Tf, Usd, UsdValidation
+    from pxr import Sdr, Tf, Usd, UsdValidation
     validators = UsdValidation.ValidationRegistry().GetOrLoadAllValidators()
     error = UsdValidation.ValidationErrorType.Error
     ran, could_not, errors = 0, [], []
+    try:
+        no_shader_defs = Sdr.Registry().GetShaderNodeByIdentifier("UsdPreviewSurface") is None
+    except Tf.ErrorException:           # the registry's discovery fails without shaderDefs.usda
+        no_shader_defs = True
     for v in validators:
         name = v.GetMetadata().name
+        if no_shader_defs and name.endswith("ShaderSdrCompliance"):
+            could_not.append(name)
+            continue
         try:
             found = UsdValidation.ValidationContext([v]).Validate(stage)
         except Tf.ErrorException:

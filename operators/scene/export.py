@@ -9,6 +9,7 @@ the export runs over the frame range of the armature's action (scene frames, res
 from __future__ import annotations
 
 import os
+import re
 import uuid
 from contextlib import contextmanager
 from typing import Iterable
@@ -71,8 +72,10 @@ def export_usd(path: str | os.PathLike, objects: Iterable[bpy.types.Object], *, 
                context=None) -> str:
     """Write ``objects`` to ``path`` (``.usd``/``.usda``/``.usdc``) and return the path.
 
-    A UsdSkel skeleton with one joint per bone and a SkelAnimation sampled at every frame.
-    Raises :class:`InputError` if this Blender has no USD exporter."""
+    A UsdSkel skeleton with one joint per bone and a SkelAnimation sampled at every frame; the
+    materials' images written to ``textures/`` beside it under names of letters, digits, ``_`` and
+    ``-`` (a name with spaces is a fragile asset path), an existing texture kept unless
+    ``overwrite``. Raises :class:`InputError` if this Blender has no USD exporter."""
     if not has_usd():
         raise InputError(f"cannot write '{os.fspath(path)}': this Blender was built without USD "
                          f"(Blender {bpy.app.version_string} has no wm.usd_export, as in Debian's "
@@ -80,10 +83,14 @@ def export_usd(path: str | os.PathLike, objects: Iterable[bpy.types.Object], *, 
     options = dict(selected_objects_only=True, export_animation=True, export_armatures=True, export_shapekeys=True,
                    only_deform_bones=False, export_meshes=True, export_materials=True,
                    export_uvmaps=True, export_normals=True, export_lights=False, export_cameras=False,
-                   export_textures_mode="KEEP", export_textures=False, generate_preview_surface=True,
-                   evaluation_mode="RENDER")
-    return _export("USD", bpy.ops.wm, "usd_export", path, (".usd", ".usda", ".usdc"), objects, options,
-                   overwrite, context)
+                   # the leaf texture is packed in the .blend: write it beside the file (textures/)
+                   # instead of referencing a ./textures/ file that KEEP never writes
+                   export_textures_mode="NEW", export_textures=True, overwrite_textures=overwrite,
+                   relative_paths=True, generate_preview_surface=True, evaluation_mode="RENDER")
+    objects = list(objects)
+    with _safe_image_names(objects):
+        return _export("USD", bpy.ops.wm, "usd_export", path, (".usd", ".usda", ".usdc"), objects, options,
+                       overwrite, context)
 
 
 # ----------------------------------------------------------------------------- common
@@ -188,6 +195,48 @@ def _selected(context, objects):
             except ReferenceError:
                 pass
         view_layer.objects.active = active
+
+
+def safe_name(name: str) -> str:
+    """``name`` as a file-name stem of ASCII letters, digits, ``_`` and ``-`` ("Tree video Leaf
+    Texture" → "Tree_video_Leaf_Texture")."""
+    stem = re.sub(r"[^A-Za-z0-9_-]+", "_", name).strip("_")
+    return stem or "texture"
+
+
+def _object_images(objects) -> list:
+    """The images used by the materials of ``objects`` (image texture nodes), each once."""
+    found: dict[int, bpy.types.Image] = {}
+    for ob in objects:
+        for slot in getattr(ob, "material_slots", ()):
+            mat = slot.material
+            if mat is None or mat.node_tree is None:
+                continue
+            for node in mat.node_tree.nodes:
+                img = getattr(node, "image", None)
+                if node.type == "TEX_IMAGE" and img is not None:
+                    found[img.as_pointer()] = img
+    return list(found.values())
+
+
+@contextmanager
+def _safe_image_names(objects):
+    """Give the images of ``objects`` safe names while exporting (the USD exporter names the
+    texture files after them); put the old names back afterwards."""
+    renamed = []
+    try:
+        for img in _object_images(objects):
+            new = safe_name(img.name)
+            if new != img.name:
+                renamed.append((img, img.name))
+                img.name = new
+        yield
+    finally:
+        for img, old in reversed(renamed):
+            try:
+                img.name = old
+            except ReferenceError:
+                pass
 
 
 @contextmanager
