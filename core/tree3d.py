@@ -6,6 +6,7 @@ tree is then scaled to metres so it stands ``height_m`` tall.
 """
 from __future__ import annotations
 
+import io
 import json
 import os
 from dataclasses import dataclass, field
@@ -124,8 +125,8 @@ def plane_to_image(p: np.ndarray, base_px: np.ndarray) -> np.ndarray:
     return np.stack([p[..., 0] + base_px[0], base_px[1] - p[..., 2]], axis=-1)
 
 
-def save_tree(path: str | os.PathLike, tree: Tree3D) -> None:
-    """Write ``tree`` as ``.npz`` (arrays + JSON metadata), atomically; no pickle."""
+def _arrays(tree: Tree3D) -> dict:
+    """The arrays of a tree file (:func:`save_tree`): nodes, radii, levels, fps, JSON metadata, leaves."""
     meta = {"format": FORMAT, "version": VERSION, "name": tree.name, **tree.meta}
     extra = {}
     if tree.leaves is not None:
@@ -135,17 +136,39 @@ def save_tree(path: str | os.PathLike, tree: Tree3D) -> None:
                           "leaf_angle": float(lv.leaf_angle)}
         extra = {f"leaf_{k}": np.asarray(getattr(lv, k) if k != "scale" else lv.scales())
                  for k in LEAF_ARRAYS}
-    atomic_savez(path, parents=tree.parents.astype(np.int32), nodes3d=tree.nodes3d.astype(np.float32),
-                 radius=tree.radius.astype(np.float32), level=tree.level.astype(np.int32),
-                 fps=np.float64(tree.fps), meta_json=np.array(json.dumps(meta)), **extra)
+    return dict(parents=tree.parents.astype(np.int32), nodes3d=tree.nodes3d.astype(np.float32),
+                radius=tree.radius.astype(np.float32), level=tree.level.astype(np.int32),
+                fps=np.float64(tree.fps), meta_json=np.array(json.dumps(meta)), **extra)
+
+
+def save_tree(path: str | os.PathLike, tree: Tree3D) -> None:
+    """Write ``tree`` as ``.npz`` (arrays + JSON metadata), atomically; no pickle."""
+    atomic_savez(path, **_arrays(tree))
+
+
+def tree_bytes(tree: Tree3D) -> bytes:
+    """``tree`` as the bytes of an uncompressed ``.npz``, the format :func:`save_tree` writes (what
+    Blender keeps with a tree in the .blend); :func:`tree_from_bytes` reads it back exactly."""
+    buf = io.BytesIO()
+    np.savez(buf, **_arrays(tree))
+    return buf.getvalue()
+
+
+def tree_from_bytes(data: bytes, what: str = "the stored tree") -> Tree3D:
+    """The tree in ``data`` written by :func:`tree_bytes` (or the bytes of a tree ``.npz``)."""
+    return _read(io.BytesIO(data), what)
 
 
 def load_tree(path: str | os.PathLike) -> Tree3D:
-    with np.load(os.fspath(path), allow_pickle=False) as z:
+    return _read(os.fspath(path), f"'{path}'")
+
+
+def _read(source, what: str) -> Tree3D:
+    with np.load(source, allow_pickle=False) as z:
         meta = json.loads(str(z["meta_json"]))
         if meta.get("format") != FORMAT:
             from .errors import InputError
-            raise InputError(f"'{path}' is not a Tree from Video 3D tree file")
+            raise InputError(f"{what} is not a Tree from Video 3D tree file")
         name = meta.pop("name", "Tree")
         leaves = None
         info = meta.pop("leaves", None)

@@ -18,7 +18,8 @@ from ..core.errors import InputError
 from ..core.generate import envelopes, forest, growth, species
 from ..core.job import Job
 from ..core.progress import sub_progress
-from . import jobs, reconstruct_op
+from . import jobs
+from .scene import stored
 from .scene.build import build_tree
 from .scene.forest import ForestBuild
 from .scene.objects import evaluated_world_mesh, unique_collection_name
@@ -29,9 +30,10 @@ BUILD_SLICE_S = 0.15
 
 # ----------------------------------------------------------------------------- inputs
 
-def species_from(props):
+def species_from(props, context=None):
     """``(model or None, tree or None)``: the species to grow. A library or file species is loaded
-    here (fast); for the last reconstruction the tree is returned and fitted in the worker."""
+    here (fast); for a reconstructed tree (the selected one, see :func:`.scene.stored.selected`)
+    the tree is returned and fitted in the worker."""
     src = props.species_source
     if src == "LIBRARY":
         lib = species.species_library()
@@ -43,23 +45,22 @@ def species_from(props):
         if not props.species_path:
             raise InputError("no species file chosen; pick a .json written by Save Species, or use the library")
         return species.load_species(bpy.path.abspath(props.species_path)), None
-    tree = reconstruct_op.LAST_TREE.get("tree")
-    if tree is None:
-        raise InputError("no reconstruction in this session; press Reconstruct first, or pick a species "
-                         "from the library or a file")
-    return None, tree
+    return None, stored.selected_tree(context or bpy.context, "Species from a reconstructed tree")
 
 
-def envelope_spec(props, tree=None):
+def envelope_spec(props, tree=None, context=None):
     """What :func:`envelopes.envelope_from_any` takes: a shape name, an image path, a polygon
-    ``(M, 2)`` (x, z metres) or the reconstruction's envelope."""
+    ``(M, 2)`` (x, z metres) or the envelope of a reconstructed tree (``tree``, else the selected one)."""
     src = props.envelope_source
     if src == "SOURCE":
-        tree = tree if tree is not None else reconstruct_op.LAST_TREE.get("tree")
-        env = envelope_from_meta(tree.meta) if tree is not None else None
+        if tree is None:
+            try:
+                tree = stored.selected_tree(context or bpy.context, "Envelope Source Outline")
+            except InputError as exc:
+                raise InputError(f"{exc}; or pick a shape, an image or a curve as the envelope") from None
+        env = envelope_from_meta(tree.meta)
         if env is None:
-            raise InputError("the source outline needs a reconstruction in this session; press Reconstruct "
-                             "first or pick a shape, an image or a curve")
+            raise InputError(f"tree '{tree.name}' has no crown envelope; pick a shape, an image or a curve")
         return env
     if src == "IMAGE":
         path = bpy.path.abspath(props.envelope_image)
@@ -140,8 +141,8 @@ class TREE_OT_generate(jobs.JobOperator, bpy.types.Operator):
 
     def make_job(self, context) -> Job:
         props = context.scene.tree_video
-        model, tree_src = species_from(props)
-        spec = envelope_spec(props, tree_src)
+        model, tree_src = species_from(props, context)
+        spec = envelope_spec(props, tree_src, context)
         params = grow_params(props, model.n_frames if model is not None else tree_src.n_frames)
         self._cursor = np.array(context.scene.cursor.location)
         if props.envelope_source == "CURVE":          # grow at the curve's size, standing where it is drawn
@@ -183,8 +184,8 @@ class TREE_OT_generate_forest(jobs.JobOperator, bpy.types.Operator):
 
     def make_job(self, context) -> Job:
         props = context.scene.tree_video
-        model, tree_src = species_from(props)
-        spec = envelope_spec(props, tree_src)
+        model, tree_src = species_from(props, context)
+        spec = envelope_spec(props, tree_src, context)
         params = grow_params(props, model.n_frames if model is not None else tree_src.n_frames)
         audio = audio_path(props)
         n, spacing, seed = props.forest_count, props.forest_spacing, props.gen_seed
@@ -263,7 +264,7 @@ class TREE_OT_generate_forest(jobs.JobOperator, bpy.types.Operator):
 
 
 class TREE_OT_save_species(bpy.types.Operator):
-    """Fit the species model (Dirichlet bifurcation ratios and motion spectra) to the last reconstruction and save it as a shareable .json"""  # noqa: E501  (the tooltip)
+    """Fit the species model (Dirichlet bifurcation ratios and motion spectra) to the selected reconstructed tree (or the file's only one) and save it as a shareable .json"""  # noqa: E501  (the tooltip)
 
     bl_idname = "tree_video.save_species"
     bl_label = "Save Species"
@@ -273,21 +274,23 @@ class TREE_OT_save_species(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
-        if reconstruct_op.LAST_TREE.get("tree") is None:
-            cls.poll_message_set("reconstruct a tree first (its species is fitted from it)")
+        coll, why = stored.selected(context)
+        if coll is None:
+            cls.poll_message_set(f"{why} (its species is fitted from it)")
             return False
         return True
 
     def invoke(self, context, event):
         if not self.filepath:
-            self.filepath = bpy.path.abspath(f"//{reconstruct_op.LAST_TREE['tree'].name}.json".replace(" ", "_"))
+            coll, _ = stored.selected(context)
+            self.filepath = bpy.path.abspath(f"//{coll.name}.json".replace(" ", "_"))
         context.window_manager.fileselect_add(self)
         return {"RUNNING_MODAL"}
 
     def execute(self, context):
-        tree = reconstruct_op.LAST_TREE.get("tree")
         path = bpy.path.abspath(self.filepath)
         try:
+            tree = stored.selected_tree(context, "Save Species")
             if not path or os.path.isdir(path):
                 raise InputError("no file name given; type a name ending in .json")
             if not path.lower().endswith(".json"):

@@ -17,11 +17,8 @@ from ..core.errors import InputError
 from ..core.job import Job
 from ..core.reconstruct.video import open_video
 from . import jobs
-from .scene import annotation, clip_overlay
+from .scene import annotation, clip_overlay, clip_view, stored
 from .scene.build import build_tree
-
-#: the last reconstructed Tree3D of this session ({"tree": Tree3D}): Save Species and Generate use it
-LAST_TREE: dict = {}
 
 
 def cache_dir() -> str:
@@ -136,8 +133,8 @@ class TREE_OT_reconstruct(jobs.JobOperator, bpy.types.Operator):
         except InputError as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
-        clip_overlay.store(res)
-        LAST_TREE["tree"] = tree
+        stored.store_tree(built["collection"], tree, res.info.path)     # Save Species, Generate: any tree, any time
+        clip_overlay.store(res, built["collection"])
         props.leaf_polygons = built["leaf_polygons"]
         for w in res.warnings:
             self.report({"WARNING"}, w)
@@ -148,8 +145,8 @@ class TREE_OT_reconstruct(jobs.JobOperator, bpy.types.Operator):
 
 
 class TREE_OT_preview(jobs.JobOperator, bpy.types.Operator):
-    """Track the video and build the 2D skeleton only, then show tracks and skeleton over the clip
-    in the Movie Clip editor (nothing is added to the scene)"""
+    """Track the video and build the 2D skeleton only, then open the clip in the Movie Clip editor
+    with the tracks and skeleton drawn over it (nothing is added to the scene)"""
 
     bl_idname = "tree_video.preview"
     bl_label = "Track & Preview"
@@ -166,11 +163,13 @@ class TREE_OT_preview(jobs.JobOperator, bpy.types.Operator):
         return Job(lambda progress: pipeline.run(video, outline, settings, progress))
 
     def done(self, context, result):
-        clip_overlay.store(result)
+        clip = clip_view.clip_for(os.path.abspath(result.info.path))
+        clip_overlay.store(result, context.scene)        # kept in the file: drawn again after reopening
+        area = clip_view.show_clip(context, clip, result.start + 1)
         for w in result.warnings:
             self.report({"WARNING"}, w)
-        self.report({"INFO"}, f"{result.tracks.points.shape[1]} tracks, {result.skeleton.n_nodes} nodes: "
-                              "see them over the clip in the Movie Clip editor")
+        where = "in the Movie Clip editor" if area is not None else f"over clip '{clip.name}' in the Movie Clip editor"
+        self.report({"INFO"}, f"{result.tracks.points.shape[1]} tracks, {result.skeleton.n_nodes} nodes {where}")
         jobs.redraw(context, "CLIP_EDITOR")
         return {"FINISHED"}
 

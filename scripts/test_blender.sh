@@ -57,7 +57,8 @@ echo "== Blender 4.3 GUI: a generated forest and the Generate sub-panel"
 shot generate 1600x1000 10 generate_shot.py "no forest in the GUI run" "forest: {'FINISHED'}" "ui ready"
 
 echo "== Blender 4.3 GUI: Track & Preview drawn over the clip in the Movie Clip editor"
-shot clip 1600x900 10 clip_shot.py "the preview did not run in the GUI" "preview: {'FINISHED'}" "clip ready"
+shot clip 1600x900 15 clip_shot.py "Track & Preview did not open the clip editor in the GUI" "preview: {'FINISHED'}" \
+  "clip editor opened by the operator: clip video.mp4, frame 1" "sidebar True on tab 'Tree'" "clip ready"
 
 echo "== Blender 4.3 GUI: outline from an annotation drawn over the clip, then Track & Preview"
 shot annotation 1600x900 12 annotation_shot.py "the annotation outline did not work in the GUI" \

@@ -26,18 +26,15 @@ def registered():
     pkg.unregister()
 
 
-def last_tree() -> dict:
-    """The live ``LAST_TREE`` of reconstruct_op: unregistering deletes the operator modules from
-    sys.modules (register_submodule_factory), so a module imported at collection time may be stale."""
-    from tree_from_video.operators import reconstruct_op  # looked up in sys.modules now, not at collection
-    return reconstruct_op.LAST_TREE
-
-
-@pytest.fixture(autouse=True)
-def no_last_tree():
-    last_tree().clear()
-    yield
-    last_tree().clear()
+def keep_tree(tree, name: str = "Kept"):
+    """A collection holding ``tree`` as Reconstruct keeps it in the file. The live ``stored`` module:
+    unregistering deletes the operator modules from sys.modules (register_submodule_factory), so a
+    module imported at collection time may be stale."""
+    from tree_from_video.operators.scene import stored  # looked up in sys.modules now, not at collection
+    coll = bpy.data.collections.new(name)
+    bpy.context.scene.collection.children.link(coll)
+    stored.store_tree(coll, tree, "/videos/kept.mp4")
+    return coll
 
 
 def _props():
@@ -135,7 +132,7 @@ def test_bad_inputs_report_and_leave_the_scene_unchanged(tmp_path):
     before = (len(bpy.data.objects), len(bpy.data.collections))
     cases = [("species_source", "FILE", "species_path", str(tmp_path / "none.json"), "not readable|does not exist|species"),
              ("species_source", "RECONSTRUCTION", None, None, "Reconstruct first"),
-             ("envelope_source", "SOURCE", None, None, "reconstruction"),
+             ("envelope_source", "SOURCE", None, None, "reconstruct.*pick a shape"),
              ("envelope_source", "IMAGE", "envelope_image", str(tmp_path / "none.png"), "does not exist"),
              ("gen_audio", str(tmp_path / "none.wav"), None, None, "does not exist")]
     for key, value, key2, value2, msg in cases:
@@ -155,9 +152,9 @@ def test_bad_inputs_report_and_leave_the_scene_unchanged(tmp_path):
     assert len(bpy.data.objects) == 0 and len(bpy.data.collections) == 0
 
 
-def test_save_species_from_the_last_reconstruction(tmp_path):
+def test_save_species_from_the_reconstructed_tree(tmp_path):
     tree = broad_tree(120)
-    last_tree()["tree"] = tree
+    keep_tree(tree)
     path = tmp_path / "mine.json"
     assert bpy.ops.tree_video.save_species(filepath=str(path)) == {"FINISHED"}
     model = species.load_species(path)

@@ -135,10 +135,10 @@ def test_preview_keeps_tracks_and_skeleton_for_the_clip_editor(addon):
     # the skeleton's root (first segment's start is an edge from the root) sits at the true base
     truth = load_truth(committed("broad"))
     base = truth["nodes2d_image"][10, 0] / [480, 360]
-    root = clip_overlay._data["nodes"][0, 0] / [480, 360]
+    root = clip_overlay.overlay_of(clip_overlay.owners(VIDEO)[0])["nodes"][0, 0] / [480, 360]
     assert np.abs(root - base).max() < 0.03
     tree_from_video.unregister()
-    assert clip_overlay.frame_geometry(VIDEO, 11) is None        # cleared with the add-on
+    assert not clip_overlay._decoded                              # cleared with the add-on
     tree_from_video.register()
 
 

@@ -59,10 +59,15 @@ def test_panel_labels_and_operators_are_registered():
     from tree_from_video.ui import panel
     tree_from_video.register()
     try:
-        labels = {c.bl_label for c in panel.classes}
-        assert labels == {"Tree from Video", "Source", "Outline", "Reconstruction", "Output", "Generate", "Export"}
-        assert all(c.is_registered and c.bl_category == "Tree" and c.bl_space_type == "VIEW_3D" for c in panel.classes)
-        assert all(c.bl_parent_id == "TREE_PT_main" for c in panel.classes if c is not panel.TREE_PT_main)
+        view3d = [c for c in panel.classes if c.bl_space_type == "VIEW_3D"]
+        clip = [c for c in panel.classes if c.bl_space_type == "CLIP_EDITOR"]     # Track & Preview's sidebar
+        assert {c.bl_label for c in view3d} == {"Tree from Video", "Source", "Outline", "Reconstruction", "Output",
+                                                "Generate", "Export"}
+        assert {c.bl_label for c in clip} == {"Tree from Video", "Source", "Outline"} and len(view3d) + len(clip) == \
+            len(panel.classes)
+        assert all(c.is_registered and c.bl_category == "Tree" and c.bl_region_type == "UI" for c in panel.classes)
+        assert all(c.bl_parent_id == "TREE_PT_main" for c in view3d if c is not panel.TREE_PT_main)
+        assert all(c.bl_parent_id == "TREE_PT_clip_main" for c in clip if c is not panel.TREE_PT_clip_main)
         for idname in ("tree_video.reconstruct", "tree_video.preview", "tree_video.cancel", "tree_video.open_clip",
                        "tree_video.export", "tree_video.generate", "tree_video.generate_forest",
                        "tree_video.save_species",

@@ -1,4 +1,5 @@
-"""The "Tree from Video" sidebar panel (View3D › Sidebar › Tree) and its sub-panels."""
+"""The "Tree from Video" sidebar panel (View3D › Sidebar › Tree) and its sub-panels; the main
+panel with Source and Outline also in the Movie Clip editor's sidebar (Tree tab)."""
 import bpy
 
 _INFO_CACHE: dict = {}
@@ -166,7 +167,7 @@ class TREE_PT_generate(_TreePanel, bpy.types.Panel):
     bl_parent_id = "TREE_PT_main"
 
     def draw(self, context):
-        from ..operators import reconstruct_op
+        from ..operators.scene import stored
         props = context.scene.tree_video
         col = self.column()
         col.prop(props, "species_source")
@@ -174,8 +175,10 @@ class TREE_PT_generate(_TreePanel, bpy.types.Panel):
             col.prop(props, "species_name")
         elif props.species_source == "FILE":
             col.prop(props, "species_path")
-        elif reconstruct_op.LAST_TREE.get("tree") is None:
-            col.label(text="Reconstruct a tree first", icon="ERROR")
+        if props.species_source == "RECONSTRUCTION" or props.envelope_source == "SOURCE":
+            coll, why = stored.selected(context)        # the tree kept in the file that is used
+            col.label(text=f"{coll.name} ({why})" if coll is not None else why,
+                      icon="OUTLINER_COLLECTION" if coll is not None else "ERROR")
         col.operator("tree_video.save_species", icon="FILE_TICK")
         col.separator()
         col.prop(props, "envelope_source")
@@ -218,7 +221,24 @@ class TREE_PT_export(_TreePanel, bpy.types.Panel):
         col.operator("tree_video.trace_skeleton", icon="FILE", text="Save 2D Skeleton (.npz)")
 
 
+def _in_clip_editor(panel, name: str, parent: str | None = None):
+    """A copy of the 3D view's ``panel`` for the Movie Clip editor's sidebar (Tree tab), with the same
+    draw functions. Not a subclass: Blender loses track of a registered panel class that is subclassed
+    and registered again (its 3D view panel then draws empty)."""
+    shared = ("bl_label", "bl_options", "poll", "draw", "draw_header", "draw_header_preset")
+    attrs = {k: v for k, v in vars(panel).items() if k in shared}
+    attrs.update(bl_idname=name, bl_space_type="CLIP_EDITOR", __doc__=panel.__doc__)
+    if parent:
+        attrs["bl_parent_id"] = parent
+    return type(name, (_TreePanel, bpy.types.Panel), attrs)
+
+
+# Track & Preview, its source and its outline in the Movie Clip editor too
+TREE_PT_clip_main = _in_clip_editor(TREE_PT_main, "TREE_PT_clip_main")
+TREE_PT_clip_source = _in_clip_editor(TREE_PT_source, "TREE_PT_clip_source", "TREE_PT_clip_main")
+TREE_PT_clip_outline = _in_clip_editor(TREE_PT_outline, "TREE_PT_clip_outline", "TREE_PT_clip_main")
+
 classes = (TREE_PT_main, TREE_PT_source, TREE_PT_outline, TREE_PT_reconstruction, TREE_PT_output, TREE_PT_generate,
-           TREE_PT_export)
+           TREE_PT_export, TREE_PT_clip_main, TREE_PT_clip_source, TREE_PT_clip_outline)
 
 register, unregister = bpy.utils.register_classes_factory(classes)

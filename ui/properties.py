@@ -52,6 +52,20 @@ def _library_items(self, context):
     return _LIBRARY_ITEMS
 
 
+def _blend_relative() -> dict:
+    """Options of a path property that may start with ``//`` (Blender 4.5+ warns without the flag;
+    older versions do not have it)."""
+    if "is_path_supports_blend_relative" not in bpy.types.Property.bl_rna.properties:
+        return {}
+    return {"options": {"PATH_SUPPORTS_BLEND_RELATIVE"}}
+
+
+def _holds_trees(self, coll) -> bool:
+    """Export › Tree lists the collections that are a tree or hold trees (a forest)."""
+    from ..operators.scene.trees import holds_trees
+    return holds_trees(coll)
+
+
 class TreeVideoSettings(bpy.types.PropertyGroup):
     # Source
     video_path: bpy.props.StringProperty(name="Video", subtype="FILE_PATH",
@@ -159,7 +173,8 @@ class TreeVideoSettings(bpy.types.PropertyGroup):
         name="Species", default="LIBRARY",
         items=[("LIBRARY", "Library", "A species shipped with the add-on (fitted from the sample videos)"),
                ("FILE", "File", "A species .json (Save Species writes one from a reconstruction)"),
-               ("RECONSTRUCTION", "Last Reconstruction", "Fit the species to the tree reconstructed in this session")],
+               ("RECONSTRUCTION", "Reconstructed Tree", "Fit the species to a tree reconstructed in this file: the "
+                "selected one (click its rig or mesh), or the only one")],
         description="Where the species model (bifurcation and motion statistics) comes from")
     species_name: bpy.props.EnumProperty(name="Library Species", items=_library_items,
                                          description="Species fitted from the bundled sample videos")
@@ -167,7 +182,8 @@ class TreeVideoSettings(bpy.types.PropertyGroup):
                                            description="Species model .json (human-readable; shareable)")
     envelope_source: bpy.props.EnumProperty(
         name="Envelope", default="CIRCLE",
-        items=[("SOURCE", "Source Outline", "The reconstructed tree's own crown envelope"),
+        items=[("SOURCE", "Source Outline", "The crown envelope of a reconstructed tree: the one the species is "
+                "fitted to, else the selected one (or the file's only one)"),
                ("CIRCLE", "Circle", "Topiary: a round crown on a stem"),
                ("TRIANGLE", "Triangle", "Topiary: a cone"),
                ("PENTAGON", "Pentagon", "Topiary: a pentagon"),
@@ -209,8 +225,22 @@ class TreeVideoSettings(bpy.types.PropertyGroup):
     forest_depth: bpy.props.FloatProperty(name="Depth", default=40.0, min=0.1, unit="LENGTH",
                                           description="Area along Y when no ground mesh is chosen (metres)")
     # Export
+    export_scope: bpy.props.EnumProperty(
+        name="Export", default="SELECTED",
+        items=[("SELECTED", "Selected Trees", "The trees of the selected objects (else the active object's, the active "
+                "collection's or the file's only tree), each to its own file named after it"),
+               ("PICK", "Pick a Tree", "The tree or forest picked from the file's trees (a forest: each tree to its own "
+                "file)")],
+        description="Which trees to export")
+    export_tree: bpy.props.PointerProperty(name="Tree", type=bpy.types.Collection, poll=_holds_trees,
+                                           description="Tree or forest of this file to export (a reconstruction, "
+                                                       "a generated tree, a forest)")
+    export_name: bpy.props.StringProperty(name="File Name",
+                                          description="Name of the file, without extension (empty: the tree's name); "
+                                                      "several trees are each named after their tree")
     output_dir: bpy.props.StringProperty(name="Folder", subtype="DIR_PATH", default="//tree_from_video",
-                                         description="Folder for exported files")
+                                         description="Folder for exported files (// = beside the saved .blend file)",
+                                         **_blend_relative())
     overwrite: bpy.props.BoolProperty(name="Overwrite", default=False,
                                       description="Replace existing files in the output folder")
     export_format: bpy.props.EnumProperty(

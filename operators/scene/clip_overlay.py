@@ -1,55 +1,104 @@
 """Tracks and the 2D skeleton drawn over the video in the Movie Clip editor (gpu draw handler).
 
-After a preview or a reconstruction the per-frame image positions are kept in memory (one video
-at a time); the handler draws them on the clip whose file is that video, at the clip's current
-frame. In the clip editor, ``region.view2d`` maps normalized frame coordinates (0..1, y up) to
-region pixels, so the drawing follows the user's zoom and pan. The handler is removed on unregister.
+What to draw — the per-frame image positions of the tracks and of the 2D skeleton — is kept in
+the .blend with what made it: a reconstructed tree's collection (Reconstruct) or the scene
+(Track & Preview: its last preview; a clip shown nowhere would not be saved), as the ID property
+:data:`KEY` (an uncompressed ``.npz``, so a saved and reopened file draws the same). On a clip
+the handler draws the newest overlay made from that clip's video, at the clip's current frame.
+In the clip editor, ``region.view2d`` maps normalized frame coordinates (0..1, y up) to region
+pixels, so the drawing follows the user's zoom and pan.
+A persistent ``load_post`` handler drops what was decoded from the previous file and makes sure
+the draw handler is there; both handlers are removed on unregister.
 """
 from __future__ import annotations
 
+import io
 import os
+import time
 
 import bpy
 import numpy as np
+from bpy.app.handlers import persistent
+
+#: the ID property (on a tree's collection or a scene) that holds an overlay: {"video", "made", "npz"}
+KEY = "_tree_from_video_overlay"
 
 _handle = None
-_data: dict = {}
+_decoded: dict = {}       # (session_uid, made) -> overlay arrays, decoded once per file and ID
 
 
-def store(res) -> None:
-    """Keep what to draw from a pipeline result: image-space tracks and skeleton per frame."""
+def _norm(path: str) -> str:
+    return os.path.normcase(os.path.normpath(os.path.abspath(bpy.path.abspath(path))))
+
+
+def overlay_arrays(res) -> dict:
+    """What to draw from a pipeline result: ``tracks (F, P, 2)`` and ``nodes (F, N, 2)`` float32
+    pixels of the video at processing ``scale`` (NaN: a track not valid in that frame), skeleton
+    ``edges (E, 2)``, frame ``size`` (w, h) of the full video, ``scale`` and first frame ``start``."""
     from ...core.reconstruct.overlay import to_image
     tr, sk = res.tracks, res.skeleton
     pts = np.stack([to_image(tr.points[t].astype(np.float64), tr.camera[t]) for t in range(tr.n_frames)])
+    pts[~np.asarray(tr.valid, bool)] = np.nan
     nodes = np.stack([to_image(sk.nodes2d[t].astype(np.float64), tr.camera[t]) for t in range(tr.n_frames)])
-    _data.clear()
-    _data.update(video=os.path.abspath(res.info.path), size=(res.info.width / res.info.scale,
-                                                              res.info.height / res.info.scale),
-                 scale=res.info.scale, start=res.start, tracks=pts.astype(np.float32), valid=tr.valid,
-                 nodes=nodes.astype(np.float32), edges=sk.edges())
+    return dict(size=np.array([res.info.width / res.info.scale, res.info.height / res.info.scale], np.float64),
+                scale=np.float64(res.info.scale), start=np.int64(res.start), tracks=pts.astype(np.float32),
+                nodes=nodes.astype(np.float32), edges=np.asarray(sk.edges(), np.int32))
+
+
+def store(res, owner) -> None:
+    """Keep the overlay of the pipeline result ``res`` in the ID ``owner`` (the tree's collection or
+    the scene), replacing the one it had; the newest overlay of a video is the one drawn."""
+    buf = io.BytesIO()
+    np.savez(buf, **overlay_arrays(res))
+    owner[KEY] = {"video": os.path.abspath(res.info.path), "made": time.time(), "npz": buf.getvalue()}
+
+
+def owners(video: str | None = None) -> list:
+    """The collections and scenes of this file that hold an overlay (of ``video`` if given), newest first."""
+    want = _norm(video) if video else None
+    found = []
+    for ids in (bpy.data.collections, bpy.data.scenes):
+        for id_ in ids:
+            group = id_.get(KEY)
+            if group is not None and (want is None or _norm(str(group["video"])) == want):
+                found.append((float(group["made"]), id_))
+    return [id_ for _, id_ in sorted(found, key=lambda m: -m[0])]
+
+
+def overlay_of(owner) -> dict:
+    """The overlay arrays kept in ``owner`` (decoded once)."""
+    group = owner[KEY]
+    key = (owner.session_uid, float(group["made"]))
+    if key not in _decoded:
+        with np.load(io.BytesIO(bytes(group["npz"])), allow_pickle=False) as z:
+            _decoded[key] = {k: z[k] for k in z.files}
+    return _decoded[key]
 
 
 def clear() -> None:
-    _data.clear()
+    _decoded.clear()
 
 
 def frame_geometry(clip_path: str, clip_frame: int):
     """(track points (P, 2), skeleton segment endpoints (2E, 2)) in normalized frame coordinates
-    (y up) for the clip's ``clip_frame`` (1-based), or None when there is nothing to draw."""
-    if not _data or os.path.abspath(clip_path) != _data["video"]:
+    (y up) for the clip's ``clip_frame`` (1-based) from the newest overlay of the clip's video,
+    or None when there is nothing to draw."""
+    found = owners(clip_path) if clip_path else []
+    if not found:
         return None
-    t = clip_frame - 1 - _data["start"]
-    if not 0 <= t < len(_data["tracks"]):
+    data = overlay_of(found[0])
+    t = clip_frame - 1 - int(data["start"])
+    if not 0 <= t < len(data["tracks"]):
         return None
-    w, h = _data["size"]
-    s = _data["scale"]
+    w, h = data["size"]
+    s = float(data["scale"])
 
     def norm(p):
         p = p / s
         return np.stack([p[:, 0] / w, 1.0 - p[:, 1] / h], axis=1)
-    pts = norm(_data["tracks"][t][_data["valid"][t]])
-    e = _data["edges"]
-    seg = norm(_data["nodes"][t][e.reshape(-1)])
+    tracks = data["tracks"][t]
+    pts = norm(tracks[np.isfinite(tracks).all(axis=1)])
+    seg = norm(data["nodes"][t][data["edges"].reshape(-1)])
     return pts, seg
 
 
@@ -84,14 +133,31 @@ def _draw():
     gpu.state.blend_set("NONE")
 
 
-def register() -> None:
+def _add_draw_handler() -> None:
     global _handle
     if _handle is None and not bpy.app.background:
         _handle = bpy.types.SpaceClipEditor.draw_handler_add(_draw, (), "WINDOW", "POST_PIXEL")
 
 
+@persistent
+def on_load_post(*_args) -> None:
+    """After a file is opened: forget what was decoded from the previous one; (re)add the draw
+    handler, so the overlays kept in the file are drawn again."""
+    clear()
+    _add_draw_handler()
+
+
+def register() -> None:
+    _add_draw_handler()
+    if on_load_post not in bpy.app.handlers.load_post:
+        bpy.app.handlers.load_post.append(on_load_post)
+
+
 def unregister() -> None:
     global _handle
+    for fn in [f for f in bpy.app.handlers.load_post if getattr(f, "__name__", "") == "on_load_post"
+               and getattr(f, "__module__", "") == __name__]:
+        bpy.app.handlers.load_post.remove(fn)
     if _handle is not None:
         bpy.types.SpaceClipEditor.draw_handler_remove(_handle, "WINDOW")
         _handle = None
