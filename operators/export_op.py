@@ -1,69 +1,266 @@
-"""Export the reconstructed tree (its collection's armature and mesh) from the panel."""
+"""Export trees from the panel (Tree sidebar › Export, and File › Export › Tree from Video): the
+selected trees, or the tree or forest picked from the file's trees, each to its own file named
+after the tree (or the File Name typed for a single tree), as FBX, binary glTF or USD.
+
+The export is a modal job (:class:`.jobs.SteppedJob`): the exporters are bpy operators, so they
+run on the main thread, one tree per timer tick, with progress in the panel and the status bar
+between trees and Esc / *Cancel*. Each file is written under a hidden temporary name and all are
+renamed to their names only after the last tree: a cancelled or failed export writes no file and
+leaves existing files as they were. ``EXEC_DEFAULT`` (scripts, tests) runs it all at once.
+"""
+from __future__ import annotations
+
 import os
+import uuid
 
 import bpy
 
 from ..core.errors import InputError
-from .scene import export
+from . import jobs
+from .scene import export, trees
 
 EXTENSIONS = {"FBX": ".fbx", "GLB": ".glb", "USD": ".usdc"}
+#: the writer of each format in :mod:`.scene.export` (looked up when called)
+WRITERS = {"FBX": "export_fbx", "GLB": "export_gltf", "USD": "export_usd"}
+#: absolute paths written by the last finished export (shown in the panel)
+LAST_EXPORT: list = []
+#: characters a typed file name cannot hold (path separators, and those Windows refuses)
+_UNSAFE = str.maketrans({c: "_" for c in '/\\:*?"<>|'})
 
 
-def tree_objects(name: str) -> list:
-    coll = bpy.data.collections.get(name)
-    objs = [o for o in coll.all_objects if o.type in ("ARMATURE", "MESH")] if coll else []
-    if not any(o.type == "ARMATURE" for o in objs):
-        raise InputError(f"no reconstructed tree in collection '{name}'; press Reconstruct first "
-                         "or set the Output collection name")
-    return objs
+# ----------------------------------------------------------------------------- what is exported
+
+def targets(context, props) -> list:
+    """The tree collections the export writes: the selected trees, or the picked tree / forest's trees."""
+    if props.export_scope == "PICK":
+        return trees.trees_in(props.export_tree)
+    return trees.selected_trees(context)
 
 
-def export_path(props) -> str:
-    folder = bpy.path.abspath(props.output_dir)
-    if not folder:
+def why_not(context, props) -> str | None:
+    """Why the Export button is disabled (its poll message), or None if it can run."""
+    if jobs.running():
+        return "a job is running; wait for it to finish or press Cancel"
+    if not trees.file_trees():
+        return "no tree in this file; press Reconstruct, Generate Tree or Generate Forest first"
+    if not targets(context, props):
+        if props.export_scope == "PICK":
+            return "no tree picked; choose one in the Tree list"
+        return "no tree selected; click a tree in the viewport, or use Pick a Tree"
+    return None
+
+
+def export_folder(props) -> str:
+    """The absolute export folder; a folder relative to an unsaved .blend is refused."""
+    raw = props.output_dir.strip()
+    if not raw:
         raise InputError("no export folder set; choose one in the Export panel")
-    name = bpy.path.clean_name(props.collection_name) or "tree"
-    return os.path.join(folder, name + EXTENSIONS[props.export_format])
+    if raw.startswith("//") and not bpy.data.filepath:
+        raise InputError(f"the folder '{raw}' is relative to the .blend file, which is not saved yet; "
+                         "save the file or choose an absolute folder")
+    folder = bpy.path.abspath(raw)
+    if not os.path.isabs(folder):
+        raise InputError(f"the folder '{raw}' is relative; choose an absolute folder, or one starting "
+                         "with // (beside the saved .blend file)")
+    return os.path.normpath(folder)
 
 
-class TREE_OT_export(bpy.types.Operator):
-    """Export the reconstructed tree to the chosen format in the export folder"""
+def file_names(colls, props) -> list:
+    """File names (with extension) of the trees ``colls``: the typed File Name for a single tree,
+    else each tree's name cleaned (``Oak 001`` → ``Oak_001``), made unique."""
+    ext = EXTENSIONS[props.export_format]
+    typed = props.export_name.strip() if len(colls) == 1 else ""
+    if typed.lower().endswith(ext):
+        typed = typed[:-len(ext)]
+    typed = typed.translate(_UNSAFE).strip(" .")
+    if len(colls) == 1 and props.export_name.strip() and not typed:
+        raise InputError(f"the file name '{props.export_name}' has no usable characters; type another name")
+    names, seen = [], set()
+    for coll in colls:
+        base = typed or bpy.path.clean_name(coll.name) or "tree"
+        name, k = base, 2
+        while name.lower() in seen:
+            name, k = f"{base}_{k}", k + 1
+        seen.add(name.lower())
+        names.append(name + ext)
+    return names
+
+
+def plan(context, props) -> list:
+    """``[(tree collection, absolute path)]`` the export writes, or :class:`InputError` naming what
+    is wrong (nothing to export, a relative folder in an unsaved file, no USD, a file that exists)."""
+    colls = targets(context, props)
+    if not colls:
+        raise InputError(why_not(context, props) or "no tree to export")
+    folder = export_folder(props)
+    if props.export_format == "USD" and not export.has_usd():
+        raise InputError("this Blender was built without USD; export FBX or glTF instead")
+    paths = [os.path.join(folder, name) for name in file_names(colls, props)]
+    if not props.overwrite:
+        existing = [p for p in paths if os.path.exists(p)]
+        if existing:
+            more = f" (and {len(existing) - 1} more)" if len(existing) > 1 else ""
+            fix = "choose another name" if len(paths) == 1 else "choose another folder"
+            raise InputError(f"{existing[0]} exists{more}: tick Overwrite or {fix}")
+    return list(zip(colls, paths))
+
+
+# ----------------------------------------------------------------------------- the sliced work
+
+def _staging_path(path: str) -> str:
+    root, ext = os.path.splitext(path)
+    return os.path.join(os.path.dirname(path), f".{os.path.basename(root)}{ext}.{uuid.uuid4().hex[:8]}.part{ext}")
+
+
+def _remove_quietly(path: str) -> None:
+    try:
+        os.remove(path)
+    except OSError:
+        pass
+
+
+def export_steps(items, fmt: str, overwrite: bool, made_folder: bool):
+    """Generator for :class:`.jobs.SteppedJob`: exports tree by tree (``items`` from :func:`plan`)
+    to temporary files, yielding ``(stage, fraction)`` before each (fraction by bones × frames),
+    then renames them all to their paths; returns the paths. Closing it early removes the
+    temporary files (and the folder if it made it and it is empty)."""
+    writer = getattr(export, WRITERS[fmt])
+    names = [coll.name for coll, _ in items]
+    sizes = [trees.tree_size(coll) for coll, _ in items]
+    total, so_far = float(sum(sizes)), 0
+    staged: list = []
+    written: list = []
+    folder = os.path.dirname(items[0][1])
+    try:
+        for k, ((coll, path), name, size) in enumerate(zip(items, names, sizes)):
+            yield f"exporting '{name}' ({k + 1}/{len(items)})", so_far / total
+            try:
+                objects = trees.tree_objects(coll)
+            except ReferenceError:
+                raise InputError(f"the tree '{name}' was deleted during the export; no file written") from None
+            tmp = _staging_path(path)
+            staged.append((tmp, path))
+            try:
+                writer(tmp, objects, overwrite=overwrite, context=bpy.context)   # (USD: its textures/ too)
+            except (InputError, export.ExportError) as exc:
+                raise InputError(f"'{name}': {str(exc).replace(tmp, path)}; no file written") from None
+            so_far += size
+        if not overwrite:
+            for _, path in staged:
+                if os.path.exists(path):
+                    raise InputError(f"{path} exists: tick Overwrite or choose another name; no file written")
+        for tmp, path in staged:
+            try:
+                os.replace(tmp, path)
+            except OSError as exc:
+                done = f"; written: {', '.join(written)}" if written else "; no file written"
+                raise InputError(f"cannot write '{path}' ({exc.strerror}); check the folder's permissions{done}") from None
+            written.append(path)
+        return written
+    finally:
+        for tmp, _ in staged:
+            if os.path.exists(tmp):
+                _remove_quietly(tmp)
+        if made_folder and not written:
+            try:
+                os.rmdir(folder)
+            except OSError:
+                pass
+
+
+# ----------------------------------------------------------------------------- operators
+
+class TREE_OT_export(jobs.JobOperator, bpy.types.Operator):
+    """Export the selected trees (or the tree picked in the Export panel), each to its own file in the export folder (Esc cancels)"""  # noqa: E501  (the tooltip)
 
     bl_idname = "tree_video.export"
     bl_label = "Export Tree"
+    bl_options = {"REGISTER"}
+    what = "export"
+    cancelled_note = "no file written"
 
     @classmethod
     def poll(cls, context):
         props = getattr(context.scene, "tree_video", None)
-        return props is not None and bpy.data.collections.get(props.collection_name) is not None
+        if props is None:
+            return False
+        reason = why_not(context, props)
+        if reason:
+            cls.poll_message_set(reason)
+            return False
+        return True
 
-    def execute(self, context):
+    def make_job(self, context):
         props = context.scene.tree_video
+        items = plan(context, props)
+        folder = os.path.dirname(items[0][1])
+        made = not os.path.isdir(folder)
         try:
-            objects = tree_objects(props.collection_name)
-            path = export_path(props)
-            folder = os.path.dirname(path)
-            if props.export_format == "USD" and not export.has_usd():
-                raise InputError("this Blender was built without USD; export FBX or glTF instead")
-            try:
-                os.makedirs(folder, exist_ok=True)
-            except OSError as exc:
-                raise InputError(f"cannot create the export folder '{folder}' ({exc.strerror}); "
-                                 "choose another folder") from None
-            if not os.access(folder, os.W_OK):
-                raise InputError(f"the export folder '{folder}' is not writable; choose another folder")
-            writer = {"FBX": export.export_fbx, "GLB": export.export_gltf, "USD": export.export_usd}[props.export_format]
-            writer(path, objects, overwrite=props.overwrite, context=context)
-        except InputError as exc:
-            self.report({"ERROR"}, str(exc))
-            return {"CANCELLED"}
-        except export.ExportError as exc:
-            self.report({"ERROR"}, str(exc))
-            return {"CANCELLED"}
-        self.report({"INFO"}, f"exported {path}")
+            os.makedirs(folder, exist_ok=True)
+        except OSError as exc:
+            raise InputError(f"cannot create the export folder '{folder}' ({exc.strerror}); "
+                             "choose another folder") from None
+        if not os.access(folder, os.W_OK):
+            raise InputError(f"the export folder '{folder}' is not writable; choose another folder")
+        return jobs.SteppedJob(export_steps(items, props.export_format, props.overwrite, made))
+
+    def done(self, context, result):
+        LAST_EXPORT[:] = result
+        for path in result:
+            print(f"tree_from_video: exported {path}", flush=True)
+        if len(result) == 1:
+            self.report({"INFO"}, f"exported {result[0]}")
+        else:
+            self.report({"INFO"}, f"exported {len(result)} files: {', '.join(result)}")
         return {"FINISHED"}
 
 
-classes = (TREE_OT_export,)
+class TREE_OT_export_dialog(bpy.types.Operator):
+    """Export trees of this file: the selected trees or one picked from the list, FBX, glTF or USD"""
 
-register, unregister = bpy.utils.register_classes_factory(classes)
+    bl_idname = "tree_video.export_dialog"
+    bl_label = "Export Trees"
+
+    @classmethod
+    def poll(cls, context):
+        if getattr(context.scene, "tree_video", None) is None:
+            return False
+        if not trees.file_trees():
+            cls.poll_message_set("no tree in this file; press Reconstruct, Generate Tree or Generate Forest first")
+            return False
+        return not jobs.running()
+
+    def invoke(self, context, event):
+        return context.window_manager.invoke_props_dialog(self, width=440, title="Export Trees", confirm_text="Export")
+
+    def draw(self, context):
+        from ..ui.panel import draw_export
+        draw_export(self.layout, context, dialog=True)
+
+    def execute(self, context):
+        reason = why_not(context, context.scene.tree_video)
+        if reason:
+            self.report({"ERROR"}, reason)
+            return {"CANCELLED"}
+        mode = "EXEC_DEFAULT" if bpy.app.background or context.window is None else "INVOKE_DEFAULT"
+        result = bpy.ops.tree_video.export(mode)
+        return {"CANCELLED"} if "CANCELLED" in result else {"FINISHED"}
+
+
+def menu_export(self, context):
+    self.layout.operator(TREE_OT_export_dialog.bl_idname, text="Tree from Video (.fbx, .glb, .usdc)")
+
+
+classes = (TREE_OT_export, TREE_OT_export_dialog)
+
+_register, _unregister = bpy.utils.register_classes_factory(classes)
+
+
+def register():
+    _register()
+    bpy.types.TOPBAR_MT_file_export.append(menu_export)
+
+
+def unregister():
+    bpy.types.TOPBAR_MT_file_export.remove(menu_export)
+    _unregister()

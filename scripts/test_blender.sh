@@ -56,6 +56,11 @@ shot panel 1600x900 10 panel_shot.py "no reconstruction in the GUI run" "reconst
 echo "== Blender 4.3 GUI: a generated forest and the Generate sub-panel"
 shot generate 1600x1000 10 generate_shot.py "no forest in the GUI run" "forest: {'FINISHED'}" "ui ready"
 
+echo "== Blender 4.3 GUI: two forest trees exported as a click starts it (modal, one tree per tick), the Export sub-panel"
+shot export 1600x900 12 export_shot.py "the modal export did not write the selected trees in the GUI" \
+  "export invoke returned {'RUNNING_MODAL'}" "exporting 'Forest 001' (2/2)" \
+  "export written: ['Forest_000.glb', 'Forest_001.glb']" "ui ready"
+
 echo "== Blender 4.3 GUI: Track & Preview drawn over the clip in the Movie Clip editor"
 shot clip 1600x900 15 clip_shot.py "Track & Preview did not open the clip editor in the GUI" "preview: {'FINISHED'}" \
   "clip editor opened by the operator: clip video.mp4, frame 1" "sidebar True on tab 'Tree'" "clip ready"

@@ -149,12 +149,15 @@ def test_export_buttons_write_the_tree_and_refuse_bad_targets(addon, tmp_path):
     addon.collection_name = "Export Me"
     assert not bpy.ops.tree_video.export.poll()                      # nothing built yet
     assert _run_op()[0] == {"FINISHED"}
+    addon.collection_name = "Next Tree"           # the next Reconstruct's name: not what is exported
     addon.output_dir = str(tmp_path / "exports")
+    from tree_from_video.operators import export_op  # the live module (register re-imports it)
+    assert [c.name for c in export_op.targets(bpy.context, addon)] == ["Export Me"]   # the new tree
     formats = ["FBX", "GLB"] + (["USD"] if export.has_usd() else [])
     for fmt in formats:
         addon.export_format = fmt
         assert bpy.ops.tree_video.export() == {"FINISHED"}
-    names = sorted(os.listdir(tmp_path / "exports"))
+    names = sorted(f for f in os.listdir(tmp_path / "exports") if os.path.isfile(tmp_path / "exports" / f))
     assert names == sorted({"FBX": "Export_Me.fbx", "GLB": "Export_Me.glb", "USD": "Export_Me.usdc"}[f]
                            for f in formats)
     fbx = tmp_path / "exports" / "Export_Me.fbx"
@@ -162,7 +165,8 @@ def test_export_buttons_write_the_tree_and_refuse_bad_targets(addon, tmp_path):
     addon.export_format = "FBX"
     try:                                                              # exists, no overwrite
         result = bpy.ops.tree_video.export()
-    except RuntimeError:
+    except RuntimeError as exc:
+        assert str(exc) == f"Error: {fbx} exists: tick Overwrite or choose another name\n"
         result = {"CANCELLED"}
     assert result == {"CANCELLED"} and fbx.stat().st_mtime_ns == before
     blocker = tmp_path / "a_file"
