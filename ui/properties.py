@@ -93,8 +93,10 @@ class TreeVideoSettings(bpy.types.PropertyGroup):
     outline_mask: bpy.props.PointerProperty(name="Mask", type=bpy.types.Mask,
                                             description="Mask drawn around the tree in frame 1 (Movie Clip editor)")
     # Reconstruction
-    levels: bpy.props.IntProperty(name="Hierarchy Levels", **_core("levels"),
-                                  description="Levels of the binary motion hierarchy incl. the root (paper: 5-7)")
+    levels: bpy.props.IntProperty(name="Levels", **_core("levels"),
+                                  description="Levels of the motion hierarchy, the root included: the tracked points are "
+                                              "split in two by how they move, again and again (more levels: more, finer "
+                                              "branches; paper: 5-7)")
     skeleton_kind: bpy.props.EnumProperty(
         name="Skeleton", **_core("skeleton_kind"),
         items=[("traced", "Traced", "Branches traced in the video, hierarchy attached through the crown"),
@@ -105,8 +107,10 @@ class TreeVideoSettings(bpy.types.PropertyGroup):
                                                     "parent (x'_i += α(x'_j − x'_i); paper: 0.4)")
     conifer: bpy.props.BoolProperty(name="Conifer Trunk", default=False,
                                     description="Keep a straight central leader fixed in the 3D lift (conifers)")
-    candidates: bpy.props.IntProperty(name="3D Candidates", default=_L.candidates, min=4, max=256,
-                                      description="Depth offsets tried per branch push in the 3D lift (paper: L)")
+    candidates: bpy.props.IntProperty(name="Depth Samples", default=_L.candidates, min=4, max=256,
+                                      description="Depths (toward or away from the camera) tried for each branch when "
+                                                  "the 2D skeleton is lifted to 3D: more finds a rounder crown but takes "
+                                                  "longer (paper: L candidates)")
     solver: bpy.props.EnumProperty(
         name="Motion Solver", **_core("solver"),
         items=[("probabilistic", "Probabilistic", "Track × shape × prior per frame, root to leaf (paper §4)"),
@@ -114,21 +118,27 @@ class TreeVideoSettings(bpy.types.PropertyGroup):
         description="How the 3D motion is solved from the tracked 2D skeleton")
     show_advanced: bpy.props.BoolProperty(name="Advanced", default=False,
                                           description="Show the motion solver's σ and bounds")
-    sigma_track: bpy.props.FloatProperty(name="σ Track", default=_M.sigma_track, min=0.0005, max=0.2, precision=4,
-                                         description="Track term width, share of the tree height")
-    sigma_shape: bpy.props.FloatProperty(name="σ Shape", default=_M.sigma_shape, min=0.001, max=1.0, precision=3,
-                                         subtype="ANGLE", description="Shape term width at the trunk (radians; grows with depth)")
+    sigma_track: bpy.props.FloatProperty(name="Track σ", default=_M.sigma_track, min=0.0005, max=0.2, precision=4,
+                                         description="How far a solved branch may stray from its tracked 2D position, as "
+                                                     "a share of the tree height (0.0075 = 0.75 % of it): smaller follows "
+                                                     "the video more closely, larger moves more smoothly (paper: σ_track)")
+    sigma_shape: bpy.props.FloatProperty(name="Shape σ", default=_M.sigma_shape, min=0.001, max=1.0, precision=3,
+                                         subtype="ANGLE",
+                                         description="How far the angle between a branch and its parent may drift from "
+                                                     "frame 1's, at the trunk (wider toward the tips): smaller keeps the "
+                                                     "branches stiffer (paper: σ_shape)")
     max_step: bpy.props.FloatProperty(name="Max Step", default=_M.max_step, min=0.01, max=1.0, subtype="ANGLE",
-                                      description="Largest rotation of a branch per frame (radians, per axis)")
+                                      description="Largest turn of a branch from one frame to the next (per axis)")
     max_total: bpy.props.FloatProperty(name="Max Total (Δ)", default=_M.max_total, min=0.05, max=3.14, subtype="ANGLE",
-                                       description="Largest accumulated rotation of a branch (radians)")
+                                       description="Largest total turn of a branch away from its frame-1 pose "
+                                                   "(paper: Δ)")
     # Output
     height_m: bpy.props.FloatProperty(name="Tree Height", unit="LENGTH",
                                       **_core("height_m", open_min=0.1, soft_max=200.0),
                                       description="Height of the reconstructed tree in the scene (metres)")
     build_mesh: bpy.props.BoolProperty(name="Branch Mesh", default=True,
                                        description="Build skinned bark tubes along the bones")
-    fit_branches: bpy.props.BoolProperty(name="Fit Branches to Video", default=True,
+    fit_branches: bpy.props.BoolProperty(name="Fit to Video", default=True,
                                          description="Measure branch widths and centre lines in the first frame "
                                                      "(the trunk sets the scale of all radii); off: pipe-model radii")
     twig_depth: bpy.props.IntProperty(name="Twig Depth", **_core("twig_depth"),
@@ -150,15 +160,16 @@ class TreeVideoSettings(bpy.types.PropertyGroup):
                                           **_core("leaf_density", open_min=0.01, soft_min=0.02),
                                           description="Share of the leaf seeds kept: fewer, larger clusters and fewer "
                                                       "polygons (polygons = clusters × cards)")
-    leaf_cards: bpy.props.IntProperty(name="Leaves per Cluster", **_core("leaf_cards", soft_max=128),
-                                      description="Leaf cards (one quad each) in every cluster")
+    leaf_cards: bpy.props.IntProperty(name="Leaf Cards", **_core("leaf_cards", soft_max=128),
+                                      description="Leaves per cluster: leaf cards, one quad each")
     max_leaf_clusters: bpy.props.IntProperty(name="Max Clusters", **_core("max_leaf_clusters"),
                                              description="Upper bound on leaf clusters (each is one bone)")
     flutter_hz: bpy.props.FloatProperty(name="Flutter", unit="NONE", **_core("flutter_hz", soft_max=12.0),
                                         description="Leaf flutter frequency ω/2π in Hz (kept below half the frame rate)")
-    flutter_gain: bpy.props.FloatProperty(name="Flutter Strength", **_core("flutter_gain", soft_max=50.0),
-                                          description="Flutter amplitude per branch speed, seconds: A = strength × "
-                                                      "speed / tree height (radians)")
+    flutter_gain: bpy.props.FloatProperty(name="Flutter Amount", **_core("flutter_gain", soft_max=50.0),
+                                          description="How strongly the leaves flutter as their branch moves, in seconds: "
+                                                      "the flutter angle A = amount × branch speed / tree height "
+                                                      "(radians)")
     leaf_image: bpy.props.StringProperty(name="Leaf Image", subtype="FILE_PATH",
                                          description="Image of one leaf (alpha = shape, stem at the bottom); empty: "
                                                      "a procedural leaf")
@@ -202,15 +213,16 @@ class TreeVideoSettings(bpy.types.PropertyGroup):
                                         description="Height of a generated tree (metres)")
     gen_nodes: bpy.props.IntProperty(name="Nodes", default=200, min=8, max=5000,
                                      description="Node budget of a generated tree (bones + 1)")
-    gen_leaf_density: bpy.props.FloatProperty(name="Leaf Density", default=1.0, min=0.0, max=1.0, subtype="FACTOR",
-                                              description="Share of the species' leaf clusters (fewer, larger "
-                                                          "clusters; 0: bare)")
+    gen_leaf_density: bpy.props.FloatProperty(name="Foliage", default=1.0, min=0.0, max=1.0, subtype="FACTOR",
+                                              description="Share of the species' leaf clusters on a generated tree (1: as "
+                                                          "leafy as the species, fewer: fewer, larger clusters; 0: bare)")
     gen_wind: bpy.props.FloatProperty(name="Wind", default=1.0, min=0.0, max=10.0,
                                       description="Sway amplitude relative to the source video (2 = twice as strong)")
     gen_audio: bpy.props.StringProperty(name="Wind Audio", subtype="FILE_PATH",
                                         description="Optional .wav whose loudness drives the sway (e.g. a windy day)")
     gen_frames: bpy.props.IntProperty(name="Frames", default=0, min=0, max=100000,
-                                      description="Length of the generated animation in frames (0: the source clip's)")
+                                      description="Length of the generated animation in frames (0: the scene's "
+                                                  "frame range when it holds a tree, else the source clip's)")
     forest_name: bpy.props.StringProperty(name="Forest", default="Forest",
                                           description="Collection that holds the forest's trees")
     forest_count: bpy.props.IntProperty(name="Trees", default=12, min=1, max=1000,
@@ -220,9 +232,9 @@ class TreeVideoSettings(bpy.types.PropertyGroup):
     forest_ground: bpy.props.PointerProperty(name="Ground", type=bpy.types.Object,
                                              poll=lambda self, ob: ob.type == "MESH",
                                              description="Mesh to scatter the trees on (empty: an area at the 3D cursor)")
-    forest_width: bpy.props.FloatProperty(name="Width", default=40.0, min=0.1, unit="LENGTH",
+    forest_width: bpy.props.FloatProperty(name="Area Width", default=40.0, min=0.1, unit="LENGTH",
                                           description="Area along X when no ground mesh is chosen (metres)")
-    forest_depth: bpy.props.FloatProperty(name="Depth", default=40.0, min=0.1, unit="LENGTH",
+    forest_depth: bpy.props.FloatProperty(name="Area Depth", default=40.0, min=0.1, unit="LENGTH",
                                           description="Area along Y when no ground mesh is chosen (metres)")
     # Export
     export_scope: bpy.props.EnumProperty(

@@ -9,7 +9,8 @@ import bpy
 
 from .build import build_tree
 from .objects import deselect_all, remove_collection, unique_collection_name
-from .timing import set_scene_timing
+from .timing import fit_scene_timing
+from .trees import scene_trees
 
 
 class ForestBuild:
@@ -59,7 +60,9 @@ class ForestBuild:
         if self.finished:
             deselect_all(context.view_layer)              # the forest is many objects: select none
             scene = context.scene
-            set_scene_timing(scene, self.trees[0].fps, max(t.n_frames for t in self.trees))
+            mine = {b["collection"].name for b in self.built}
+            others = [c for c in scene_trees(scene) if c.name not in mine]
+            fit_scene_timing(scene, self.trees[0].fps, max(t.n_frames for t in self.trees), first=not others)
             scene.frame_set(scene.frame_start)
         self.elapsed += time.perf_counter() - t0
 

@@ -17,6 +17,24 @@ def set_scene_timing(scene, fps: float, n_frames: int) -> None:
     set_frame_range(scene, 1, n_frames)
 
 
+def fit_scene_timing(scene, fps: float, n_frames: int, first: bool) -> None:
+    """Make the scene play a tree of ``n_frames`` frames (scene frames ``1..n_frames``).
+
+    The first tree of a scene sets its frame rate and range (:func:`set_scene_timing`: a
+    reconstruction plays at the video's rate). A tree added to a scene that already holds trees
+    only grows the range to cover it (start at most 1, end at least ``n_frames``) and keeps the
+    frame rate: Generate must not cut a 555-frame reconstruction's playback to its own 180."""
+    if first:
+        set_scene_timing(scene, fps, n_frames)
+        return
+    set_frame_range(scene, min(scene.frame_start, 1), max(scene.frame_end, int(n_frames)))
+
+
+def scene_fps(scene) -> float:
+    """The scene's frame rate in frames per second (``fps / fps_base``)."""
+    return scene.render.fps / scene.render.fps_base
+
+
 def restore_scene_timing(scene, fps, fps_base, start, end, current) -> None:
     scene.render.fps, scene.render.fps_base = fps, fps_base
     set_frame_range(scene, start, end)
