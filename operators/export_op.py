@@ -170,6 +170,73 @@ def export_steps(items, fmt: str, overwrite: bool, made_folder: bool):
 
 # ----------------------------------------------------------------------------- operators
 
+
+# ----------------------------------------------------------------------------- the settings' layout
+
+def _names(colls, limit: int = 3) -> str:
+    shown = ", ".join(c.name for c in colls[:limit])
+    return shown + (f" and {len(colls) - limit} more" if len(colls) > limit else "")
+
+
+def draw_settings(layout, context, dialog: bool = False) -> None:
+    """The export settings and what pressing Export will write (the Export sub-panel, and the
+    File › Export › Tree from Video dialog, which has its own Export button)."""
+    props = context.scene.tree_video
+    layout.use_property_split = True
+    layout.use_property_decorate = False
+    col = layout.column()
+    if not trees.file_trees():
+        col.label(text="No tree in this file yet: Reconstruct or Generate one", icon="INFO")
+    row = col.row()
+    row.use_property_split = False
+    row.prop(props, "export_scope", expand=True)
+    if props.export_scope == "PICK":
+        col.prop(props, "export_tree")
+    colls = targets(context, props)
+    if colls:
+        col.label(text=f"{len(colls)} {'tree' if len(colls) == 1 else 'trees'}: {_names(colls)}",
+                  icon="OUTLINER_OB_ARMATURE")
+    elif props.export_scope == "SELECTED":
+        col.label(text="Click a tree in the viewport, or Pick a Tree", icon="RESTRICT_SELECT_OFF")
+    if len(colls) <= 1:
+        col.prop(props, "export_name", placeholder=bpy.path.clean_name(colls[0].name) if colls else "")
+    else:
+        col.label(text="Files are named after each tree", icon="FILE")
+    col.prop(props, "export_format")
+    col.prop(props, "output_dir")
+    col.prop(props, "overwrite")
+    problem = None
+    if colls:
+        try:
+            plan(context, props)
+        except InputError as exc:
+            problem = str(exc)
+    if problem:
+        box = col.box().column(align=True)
+        width = 440 if dialog or context.region is None else context.region.width / context.preferences.view.ui_scale
+        for k, line in enumerate(_wrap(problem, max(int((width - 70) / 6.2), 20))):
+            box.label(text=line, icon="ERROR" if k == 0 else "BLANK1")
+    if not dialog:
+        row = col.row()
+        row.scale_y = 1.3
+        n = len(colls)
+        row.operator("tree_video.export", icon="EXPORT", text=f"Export {n} Trees" if n > 1 else "Export Tree")
+    if LAST_EXPORT and not dialog:
+        last = LAST_EXPORT
+        sub = col.column(align=True)
+        sub.label(text=f"Last export: {len(last)} {'file' if len(last) == 1 else 'files'}", icon="CHECKMARK")
+        for path in last[:3]:
+            sub.label(text=path, icon="BLANK1")
+        if len(last) > 3:
+            sub.label(text=f"… and {len(last) - 3} more", icon="BLANK1")
+
+
+def _wrap(text: str, width: int) -> list:
+    """``text`` in lines of at most ``width`` characters (a label does not wrap)."""
+    import textwrap
+    return textwrap.wrap(text, width) or [""]
+
+
 class TREE_OT_export(jobs.JobOperator, bpy.types.Operator):
     """Export the selected trees (or the tree picked in the Export panel), each to its own file in the export folder (Esc cancels)"""  # noqa: E501  (the tooltip)
 
@@ -234,8 +301,7 @@ class TREE_OT_export_dialog(bpy.types.Operator):
         return context.window_manager.invoke_props_dialog(self, width=440, title="Export Trees", confirm_text="Export")
 
     def draw(self, context):
-        from ..ui.panel import draw_export
-        draw_export(self.layout, context, dialog=True)
+        draw_settings(self.layout, context, dialog=True)
 
     def execute(self, context):
         reason = why_not(context, context.scene.tree_video)
