@@ -11,6 +11,9 @@ from ...core.tree3d import Tree3D
 from . import action_api
 from .objects import Created, deselect_all
 
+#: the hidden bone collection of the branch bones (the leaf bones have their own, "Leaves")
+BRANCH_BONES = "Branches"
+
 
 def build_armature(context, tree: Tree3D, coll, name: str, created: Created, extra_edit=None):
     """Armature object with one connected bone per edge at frame-0 positions; ``extra_edit(data)``
@@ -34,7 +37,8 @@ def build_armature(context, tree: Tree3D, coll, name: str, created: Created, ext
     with context.temp_override(active_object=rig, object=rig, edit_object=rig):   # also in a scratch scene
         bpy.ops.object.mode_set(mode="EDIT")
         try:
-            _edit_bones(data, names, rest_pos[edges[:, 0]], rest_pos[edges[:, 1]], parent_bone)
+            branch_bones = _edit_bones(data, names, rest_pos[edges[:, 0]], rest_pos[edges[:, 1]], parent_bone)
+            hide_bones(data, branch_bones, BRANCH_BONES)
             extra = extra_edit(data) if extra_edit is not None else []
         finally:
             bpy.ops.object.mode_set(mode="OBJECT")
@@ -52,9 +56,23 @@ def build_armature(context, tree: Tree3D, coll, name: str, created: Created, ext
     return rig, rest, extra
 
 
-def _edit_bones(data, names: list[str], heads: np.ndarray, tails: np.ndarray, parent_bone: np.ndarray) -> None:
+def hide_bones(data, edit_bones: list, name: str) -> None:
+    """In edit mode: put ``edit_bones`` in a new, hidden bone collection ``name`` of the armature
+    ``data`` (Blender 4.0+), so the viewport draws none of them (black sticks would poke out of
+    every branch tip) while every export keeps them, with their names and keys (exporters ignore
+    bone collections). Armature properties › Bone Collections shows them again."""
+    if not hasattr(data, "collections"):
+        return
+    bcoll = data.collections.new(name)
+    for eb in edit_bones:
+        bcoll.assign(eb)
+    bcoll.is_visible = False
+
+
+def _edit_bones(data, names: list[str], heads: np.ndarray, tails: np.ndarray, parent_bone: np.ndarray) -> list:
     """In edit mode: bones ``names`` from ``heads``/``tails (B, 3)`` metres, roll 0, each connected
-    to ``parent_bone`` (-1: none): its head is the parent's tail, the node they share."""
+    to ``parent_bone`` (-1: none): its head is the parent's tail, the node they share. Returns the
+    new edit bones."""
     ebones = data.edit_bones
     new = [ebones.new(n) for n in names]
     ebones.foreach_set("head", np.asarray(heads, np.float32).ravel())
@@ -64,6 +82,7 @@ def _edit_bones(data, names: list[str], heads: np.ndarray, tails: np.ndarray, pa
         if pb >= 0:
             eb.parent = new[pb]
             eb.use_connect = True
+    return new
 
 
 def key_pose(rig, local: np.ndarray, names: list[str], action_name: str, created: Created):

@@ -34,9 +34,11 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
     """Create the animated tree in a new collection ``collection_name`` under the scene collection.
 
     Creates an armature object ``"<name> Rig"`` (one bone per edge, ``"B{child:03d}"``, rest pose =
-    tree frame 0, roll 0, connected to the parent bone) whose pose bones are keyed in QUATERNION
-    mode at every scene frame ``1..F`` (LINEAR keys, action ``"<name> Sway"``); sets the scene's
-    fps (``fps`` int + ``fps_base``) and frame range ``1..F``; with ``mesh``, a branch mesh
+    tree frame 0, roll 0, connected to the parent bone; the bones in a hidden bone collection
+    ``"Branches"``, so the viewport draws no sticks) whose pose bones are keyed in QUATERNION
+    mode at every scene frame ``1..F`` (LINEAR keys, action ``"<name> Sway"``); the first tree of
+    a scene sets its fps (``fps`` int + ``fps_base``) and frame range ``1..F``, a later one only
+    grows the range to cover ``1..F`` (:func:`.timing.fit_scene_timing`); with ``mesh``, a branch mesh
     ``"<name> Branches"`` (tapered tubes with ``sides`` sides, one vertex group per bone, Armature
     modifier, parented to the rig; ``curliness`` 0..1 and ``bark`` "none"/"smooth"/"rough" as in
     :mod:`core.branch_mesh`, None: from ``tree.meta["mesh"]``, see :func:`mesh_params`) and a bark
@@ -52,6 +54,8 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
     ``materials`` ``{"bark": Material, "leaf": Material}`` reuses existing materials (a forest
     shares one bark and one leaf material) instead of creating them. ``update_frame=False`` skips
     evaluating the scene at its first frame at the end (a forest does it once after all trees).
+
+    The new objects land unselected, the rig active.
 
     Returns ``{"collection", "armature", "mesh" (or None), "action", "material" (or None),
     "leaves" (or None), "leaf_polygons", "timings"}`` with ``timings`` in seconds (``rotations``,
@@ -95,7 +99,7 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
         render = scene.render
         saved = (render.fps, render.fps_base, scene.frame_start, scene.frame_end, scene.frame_current)
         created.on_failure(lambda: timing.restore_scene_timing(scene, *saved))
-        timing.set_scene_timing(scene, tree.fps, tree.n_frames)
+        timing.fit_scene_timing(scene, tree.fps, tree.n_frames, first=not trees.scene_trees(scene, exclude=coll))
 
         mesh_obj = material = None
         if mesh:
@@ -111,7 +115,7 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
             leaf_mat = (materials or {}).get("leaf")
             if leaf_mat is None:
                 leaf_mat = created.add(bpy.data.materials, mats.leaf_material(
-                    names["leaf_material"], leaf_image, mats.leaf_tint(tree.leaves)))
+                    names["leaf_material"], leaf_image, mats.leaf_tint(tree.leaves), mats.leaf_colour(tree.leaves)))
                 for img in mats.material_images(leaf_mat):
                     created.add(bpy.data.images, img)
             leaf_obj = leaf_build.build_leaf_mesh(tree, rig, coll, names["leaves"], leaf_names, leaf_mat, created)
@@ -127,10 +131,8 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
                 shared = materials is not None and any(id_ is m for m in materials.values())
                 if id_ is not None and id_.name != name and not shared:
                     id_.name = name
-        deselect_all(context.view_layer)
-        for ob in coll.objects:
-            ob.select_set(True)
-        context.view_layer.objects.active = rig
+        deselect_all(context.view_layer)        # lands unselected: no orange outline over the new tree,
+        context.view_layer.objects.active = rig  # the rig active (its properties show, ready to select)
         if update_frame:
             scene.frame_set(scene.frame_start)
     except BaseException:

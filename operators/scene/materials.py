@@ -15,6 +15,8 @@ TEXTURE_SIZE = 128
 
 #: bark material by preset: (bump strength, furrow share of the relief)
 BARK_LOOK = {"none": (0.35, 0.0), "smooth": (0.2, 0.15), "rough": (0.6, 0.6)}
+#: the bark's colour ramp, dark and light end (linear RGBA), driven by noise of mean ½
+BARK_RAMP = ((0.07, 0.055, 0.045, 1.0), (0.33, 0.29, 0.25, 1.0))
 
 
 def principled_nodes(mat):
@@ -35,7 +37,7 @@ def bark_material(name: str, kind: str = "none") -> bpy.types.Material:
     strength, furrow = BARK_LOOK.get(kind, BARK_LOOK["none"])
     mat = bpy.data.materials.new(name)
     try:
-        mat.diffuse_color = (0.22, 0.17, 0.13, 1.0)          # solid-view colour
+        mat.diffuse_color = bark_colour()                    # solid-view colour: the bark's own
         mat.roughness = 0.9
         nt, out, bsdf = principled_nodes(mat)
         coord = nt.nodes.new("ShaderNodeTexCoord")
@@ -50,8 +52,7 @@ def bark_material(name: str, kind: str = "none") -> bpy.types.Material:
         noise.inputs["Scale"].default_value = 3.0
         noise.inputs["Detail"].default_value = 8.0
         voronoi.inputs["Scale"].default_value = 5.0
-        ramp.color_ramp.elements[0].color = (0.07, 0.055, 0.045, 1.0)
-        ramp.color_ramp.elements[1].color = (0.33, 0.29, 0.25, 1.0)
+        ramp.color_ramp.elements[0].color, ramp.color_ramp.elements[1].color = BARK_RAMP
         bump.inputs["Strength"].default_value = strength
         bsdf.inputs["Roughness"].default_value = 0.9
         link = nt.links.new
@@ -83,6 +84,20 @@ def bark_material(name: str, kind: str = "none") -> bpy.types.Material:
         bpy.data.materials.remove(mat)
         raise
     return mat
+
+
+def bark_colour() -> tuple:
+    """Linear RGBA of the bark as rendered on average: the middle of its colour ramp
+    (:data:`BARK_RAMP`), the bark material's solid-view colour."""
+    dark, light = (np.asarray(c, np.float64) for c in BARK_RAMP)
+    return tuple(float(c) for c in 0.5 * (dark + light))
+
+
+def leaf_colour(leaves) -> np.ndarray:
+    """``(3,)`` sRGB colour of the foliage as the video shows it: the median of the clusters'
+    colours per channel (the species model keeps the same median). The leaf material's
+    solid-view colour."""
+    return np.median(np.asarray(leaves.colour, np.float64), axis=0)
 
 
 def leaf_tint(leaves) -> np.ndarray:
@@ -133,15 +148,18 @@ def leaf_image(name: str, path: str | None, tint=(1.0, 1.0, 1.0)):
     return img
 
 
-def leaf_material(name: str, image_path: str | None = None, tint=(0.3, 0.5, 0.2)) -> bpy.types.Material:
+def leaf_material(name: str, image_path: str | None = None, tint=(0.3, 0.5, 0.2),
+                  colour=None) -> bpy.types.Material:
     """Leaf material: the leaf image (``image_path`` or procedural, packed; alpha cut-out)
     multiplied by the mesh's ``Col`` colour attribute (the video's colour), Principled BSDF,
-    two-sided; ``tint`` (sRGB, :func:`leaf_tint`) colours the procedural leaf and the solid view.
-    The caller removes it (and its image, via :func:`material_images`) on failure."""
+    two-sided; ``tint`` (sRGB, :func:`leaf_tint`) colours the procedural leaf, ``colour`` (sRGB,
+    :func:`leaf_colour`; None: ``tint``) the solid view (Viewport Display colour). The caller
+    removes it (and its image, via :func:`material_images`) on failure."""
     mat = bpy.data.materials.new(name)
     img = None
     try:
-        mat.diffuse_color = (*(_srgb_to_linear(np.asarray(tint, np.float64)) * 0.8), 1.0)
+        solid = np.asarray(tint if colour is None else colour, np.float64)
+        mat.diffuse_color = (*srgb_to_linear(np.clip(solid, 0.0, 1.0)), 1.0)
         if hasattr(mat, "surface_render_method"):          # EEVEE Next (4.2+)
             mat.surface_render_method = "DITHERED"
         if hasattr(mat, "blend_method"):
@@ -186,5 +204,5 @@ def material_images(mat) -> list:
     return [n.image for n in mat.node_tree.nodes if n.type == "TEX_IMAGE" and n.image is not None]
 
 
-def _srgb_to_linear(c: np.ndarray) -> np.ndarray:
+def srgb_to_linear(c: np.ndarray) -> np.ndarray:
     return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
