@@ -19,8 +19,9 @@ from ..core.generate import envelopes, forest, growth, species
 from ..core.job import Job
 from ..core.progress import sub_progress
 from . import jobs
-from .scene import stored
+from .scene import stored, timing, trees
 from .scene.build import build_tree
+from .scene.checks import missing_file, refuse
 from .scene.forest import ForestBuild
 from .scene.objects import evaluated_world_mesh, unique_collection_name
 
@@ -84,10 +85,17 @@ def curve_polygon(ob) -> np.ndarray:
     return world[:, [0, 2]]
 
 
-def grow_params(props, model_frames: int | None = None) -> growth.GrowParams:
-    frames = props.gen_frames or model_frames or 250
+def grow_params(props, model_frames: int | None = None, scene=None) -> growth.GrowParams:
+    """The growth settings of the panel. Frames 0 (default): in a ``scene`` that already holds a
+    tree, the scene's frame range at its frame rate (a new tree plays as long as what is there),
+    else the source clip's length at its rate."""
+    frames, fps = props.gen_frames, None
+    if scene is not None and trees.scene_trees(scene):
+        fps = timing.scene_fps(scene)
+        frames = frames or scene.frame_end - max(scene.frame_start, 1) + 1
+    frames = frames or model_frames or 250
     return growth.GrowParams(seed=props.gen_seed, height_m=props.gen_height, node_budget=props.gen_nodes,
-                             n_frames=int(frames), wind=props.gen_wind,
+                             n_frames=int(frames), fps=fps, wind=props.gen_wind,
                              leaf_density=props.gen_leaf_density if props.build_leaves else 0.0)
 
 
@@ -107,6 +115,53 @@ def ground_triangles(ob) -> np.ndarray:
         raise InputError("no ground mesh chosen; pick a mesh with faces, or clear it to use an area")
     world, tri = evaluated_world_mesh(ob, triangles=True)
     return world[tri]
+
+
+def _no_reconstruction(context, what: str, instead: str) -> str | None:
+    """Why ``what`` (which uses a reconstructed tree) cannot run, or None: the file has none, or
+    several and none is selected."""
+    coll, _ = stored.selected(context)
+    if coll is not None:
+        return None
+    n = len(stored.tree_collections())
+    if n == 0:
+        return f"{what} needs a reconstruction in this file; press Reconstruct first, or {instead}"
+    return f"{what} needs one of the {n} reconstructed trees; select it (click its rig or mesh), or {instead}"
+
+
+def why_not(context, props) -> str | None:
+    """Why Generate Tree and Generate Forest are disabled (their poll message), or None: a job is
+    running, no species (none in the library, a missing file, no reconstructed tree), or the
+    envelope or the wind audio is missing. Cheap: file checks are cached."""
+    if props is None:
+        return "the add-on's settings are missing; enable Tree from Video again"
+    if jobs.running():
+        return "a job is running; wait for it to finish or press Cancel"
+    src = props.species_source
+    if src == "LIBRARY" and props.species_name in ("", "NONE"):
+        return "no species in the library; pick a species file or a reconstructed tree as the Species"
+    if src == "FILE":
+        problem = missing_file(props.species_path, "species file", "Generate")
+        if problem:
+            return problem
+    if src == "RECONSTRUCTION":
+        problem = _no_reconstruction(context, "the species of a reconstructed tree", "pick a species from the library or a file")
+        if problem:
+            return problem
+    env = props.envelope_source
+    if env == "SOURCE" and src != "RECONSTRUCTION":
+        problem = _no_reconstruction(context, "Source Outline", "pick a shape, an image or a curve as the Envelope")
+        if problem:
+            return problem
+    if env == "IMAGE":
+        problem = missing_file(props.envelope_image, "silhouette image", "Generate")
+        if problem:
+            return problem
+    if env == "CURVE" and props.envelope_curve is None:
+        return "no envelope curve chosen; draw a closed curve in the front view and pick it (Envelope › Curve)"
+    if props.gen_audio:
+        return missing_file(props.gen_audio, "wind audio", "Generate")
+    return None
 
 
 def _grow_work(model, tree_src, spec, params, audio, slots_fn=None):
@@ -137,13 +192,14 @@ class TREE_OT_generate(jobs.JobOperator, bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
-        return getattr(context.scene, "tree_video", None) is not None and not jobs.running()
+        why = why_not(context, getattr(context.scene, "tree_video", None))
+        return refuse(cls, why) if why else True
 
     def make_job(self, context) -> Job:
         props = context.scene.tree_video
         model, tree_src = species_from(props, context)
         spec = envelope_spec(props, tree_src, context)
-        params = grow_params(props, model.n_frames if model is not None else tree_src.n_frames)
+        params = grow_params(props, model.n_frames if model is not None else tree_src.n_frames, context.scene)
         self._cursor = np.array(context.scene.cursor.location)
         if props.envelope_source == "CURVE":          # grow at the curve's size, standing where it is drawn
             spec = envelopes.envelope_from_polygon(spec)
@@ -180,13 +236,14 @@ class TREE_OT_generate_forest(jobs.JobOperator, bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
-        return TREE_OT_generate.poll(context)
+        why = why_not(context, getattr(context.scene, "tree_video", None))
+        return refuse(cls, why) if why else True
 
     def make_job(self, context) -> Job:
         props = context.scene.tree_video
         model, tree_src = species_from(props, context)
         spec = envelope_spec(props, tree_src, context)
-        params = grow_params(props, model.n_frames if model is not None else tree_src.n_frames)
+        params = grow_params(props, model.n_frames if model is not None else tree_src.n_frames, context.scene)
         audio = audio_path(props)
         n, spacing, seed = props.forest_count, props.forest_spacing, props.gen_seed
         if props.forest_ground is not None:

@@ -168,12 +168,69 @@ def cancel_requested(context) -> bool:
 
 
 def status(context, stage: str, fraction: float) -> None:
-    """Show ``stage`` and ``fraction`` (0..1) of the running job in the panel (window manager
-    ``tree_video_status`` / ``tree_video_progress``); ``""`` clears it."""
+    """Show ``stage`` and ``fraction`` (0..1) of the running job in the panel and the status bar
+    (window manager ``tree_video_status`` / ``tree_video_progress``); ``""`` clears both."""
     wm = context.window_manager
     wm.tree_video_status = stage
     wm.tree_video_progress = 100.0 * fraction
+    show_in_status_bar(context, bool(stage))
     redraw(context, "VIEW_3D")
+    redraw(context, "CLIP_EDITOR")
+
+
+def status_text(wm) -> str:
+    """The running job in a few words, as the panel and the status bar show it: "Motion 72 %"."""
+    stage = wm.tree_video_status
+    return f"{stage[:1].upper()}{stage[1:]} {wm.tree_video_progress:.0f} %"
+
+
+def draw_status_bar(header, context) -> None:
+    """Drawn at the end of Blender's status bar (``STATUSBAR_HT_header``) while a job runs: its
+    stage and progress bar, and a Cancel button."""
+    wm = context.window_manager
+    if not getattr(wm, "tree_video_status", ""):
+        return
+    row = header.layout.row(align=True)
+    bar = row.row(align=True)
+    bar.ui_units_x = 11
+    if hasattr(bar, "progress"):                   # Blender 4.0+
+        bar.progress(factor=wm.tree_video_progress / 100.0, type="BAR", text=status_text(wm))
+    else:
+        bar.label(text=status_text(wm), icon="TIME")
+    row.operator("tree_video.cancel", text="", icon="CANCEL")
+
+
+_STATUS_SHOWN: dict = {"text": None}
+
+
+def status_bar_shown() -> bool:
+    """True while :func:`draw_status_bar` is part of the status bar."""
+    import bpy
+    header = getattr(bpy.types, "STATUSBAR_HT_header", None)
+    funcs = getattr(getattr(header, "draw", None), "_draw_funcs", None) or ()
+    return any(f is draw_status_bar for f in funcs)
+
+
+def show_in_status_bar(context, show: bool) -> None:
+    """Add :func:`draw_status_bar` to the status bar (``show``) or take it out, and have the status
+    bar redrawn when what it shows changes (Python cannot tag it directly: clearing the workspace's
+    status text does, and a modal tool that set one sets it again on its next event)."""
+    import bpy
+    header = getattr(bpy.types, "STATUSBAR_HT_header", None)
+    if header is None:
+        return
+    if show and not status_bar_shown():
+        header.append(draw_status_bar)
+    elif not show and status_bar_shown():
+        header.remove(draw_status_bar)
+    text = status_text(context.window_manager) if show and context is not None else None
+    if text != _STATUS_SHOWN["text"]:
+        _STATUS_SHOWN["text"] = text
+        if context is None or bpy.app.background or getattr(context, "window", None) is None:
+            return                                  # no status bar to redraw
+        workspace = getattr(context, "workspace", None)
+        if workspace is not None and hasattr(workspace, "status_text_set_internal"):
+            workspace.status_text_set_internal(None)
 
 
 def redraw(context, area_type: str) -> None:
@@ -190,3 +247,4 @@ def cancel_all(timeout: float = 2.0) -> None:
         job.cancel()
         job.join(timeout)
     _RUNNING.clear()
+    show_in_status_bar(None, False)

@@ -19,6 +19,7 @@ from ..core.reconstruct.video import open_video
 from . import jobs
 from .scene import annotation, clip_overlay, clip_view, stored
 from .scene.build import build_tree
+from .scene.checks import missing_file, refuse
 
 
 def cache_dir() -> str:
@@ -90,13 +91,38 @@ def inputs_from(props):
     return video, bpy.path.abspath(props.outline_path)
 
 
+def why_not(props) -> str | None:
+    """Why Reconstruct and Track & Preview are disabled (their poll message), or None: a job is
+    running, no video or no outline (or one that does not exist). Cheap: file checks are cached."""
+    if props is None:
+        return "the add-on's settings are missing; enable Tree from Video again"
+    if jobs.running():
+        return "a job is running; wait for it to finish or press Cancel"
+    problem = missing_file(props.video_path, "video", "Source")
+    if problem:
+        return problem
+    if props.outline_source == "FILE":
+        return missing_file(props.outline_path, "outline file", "Outline")
+    if props.outline_source == "MASK" and props.outline_mask is None:
+        return ("no outline mask chosen; press Open Clip to Draw Outline, draw a Mask around the tree "
+                "on frame 1 and pick it in the Outline panel")
+    if props.outline_source == "ANNOTATION":
+        ok, text = annotation.status(props.video_path)
+        if not ok:
+            return f"no outline yet ({text}); press Open Clip to Draw Outline and draw around the tree on frame 1"
+    return None
+
+
 def make_work(video, outline, settings: pipeline.Settings, name: str):
     """The worker's function: skeleton, lift and motion (pure core, no bpy)."""
     from ..core.progress import sub_progress
 
     def work(progress):
-        res = pipeline.run(video, outline, settings, sub_progress(progress, 0.0, 0.75))
-        tree = pipeline.build_3d(res, settings, name=name, progress=sub_progress(progress, 0.75, 1.0))
+        # the 2D stages get their share of the expected time (pipeline.STAGE_COSTS_3D: ≈ 40 % at 180
+        # frames, less on longer clips, where the motion dominates), so the bar moves evenly
+        split = pipeline.share_2d(pipeline.clip_frames(video, settings))
+        res = pipeline.run(video, outline, settings, sub_progress(progress, 0.0, split))
+        tree = pipeline.build_3d(res, settings, name=name, progress=sub_progress(progress, split, 1.0))
         return res, tree
     return work
 
@@ -110,8 +136,8 @@ class TREE_OT_reconstruct(jobs.JobOperator, bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
-        props = getattr(context.scene, "tree_video", None)
-        return props is not None and bool(props.video_path) and not jobs.running()
+        why = why_not(getattr(context.scene, "tree_video", None))
+        return refuse(cls, why) if why else True
 
     def make_job(self, context) -> Job:
         props = context.scene.tree_video
@@ -155,7 +181,8 @@ class TREE_OT_preview(jobs.JobOperator, bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
-        return TREE_OT_reconstruct.poll(context)
+        why = why_not(getattr(context.scene, "tree_video", None))
+        return refuse(cls, why) if why else True
 
     def make_job(self, context) -> Job:
         video, outline = inputs_from(context.scene.tree_video)
@@ -182,7 +209,7 @@ class TREE_OT_cancel(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
-        return jobs.running()
+        return jobs.running() or refuse(cls, "nothing is running")
 
     def execute(self, context):
         jobs.request_cancel(context)
@@ -199,7 +226,10 @@ class TREE_OT_open_clip(bpy.types.Operator):
     @classmethod
     def poll(cls, context):
         props = getattr(context.scene, "tree_video", None)
-        return props is not None and bool(props.video_path)
+        if props is None:
+            return refuse(cls, "the add-on's settings are missing; enable Tree from Video again")
+        why = missing_file(props.video_path, "video", "Source")
+        return refuse(cls, why) if why else True
 
     def execute(self, context):
         path = bpy.path.abspath(context.scene.tree_video.video_path)

@@ -6,6 +6,7 @@ import bpy
 from ..core import pipeline
 from ..core.errors import InputError
 from ..core.reconstruct import skeleton_io
+from .scene.checks import missing_file, refuse
 
 
 class TREE_OT_trace_skeleton(bpy.types.Operator):
@@ -18,7 +19,11 @@ class TREE_OT_trace_skeleton(bpy.types.Operator):
     @classmethod
     def poll(cls, context):
         props = getattr(context.scene, "tree_video", None)
-        return props is not None and bool(props.video_path) and bool(props.outline_path)
+        if props is None:
+            return refuse(cls, "the add-on's settings are missing; enable Tree from Video again")
+        why = (missing_file(props.video_path, "video", "Source")
+               or missing_file(props.outline_path, "outline file", "Outline"))
+        return refuse(cls, why) if why else True
 
     def execute(self, context):
         props = context.scene.tree_video

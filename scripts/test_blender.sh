@@ -51,7 +51,8 @@ shot() {
 }
 
 echo "== Blender 4.3 GUI: screenshot of the panel after a reconstruction"
-shot panel 1600x900 10 panel_shot.py "no reconstruction in the GUI run" "reconstruct: {'FINISHED'}" "ui ready"
+shot panel 1600x1280 10 panel_shot.py "no reconstruction in the GUI run" "reconstruct: {'FINISHED'}" "ui ready" \
+  "viewport: 0 selected, bones hidden True, leaf solid colour green True"
 
 echo "== Blender 4.3 GUI: a generated forest and the Generate sub-panel"
 shot generate 1600x1000 10 generate_shot.py "no forest in the GUI run" "forest: {'FINISHED'}" "ui ready"
@@ -72,9 +73,10 @@ shot annotation 1600x900 12 annotation_shot.py "the annotation outline did not w
 echo "== Blender 4.3 GUI: Reconstruct as a user starts it (INVOKE, modal), then cancelled"
 "$RB" gui-shot "$OUT/modal.png" --size 1200x800 --wait 25 -- \
   blender --factory-startup --python tests/gui/modal_run.py > "$OUT/modal.log" 2>&1 || true
-grep -E "invoke returned|stages seen|finished" "$OUT/modal.log" || true
+grep -E "invoke returned|stages seen|status bar|finished" "$OUT/modal.log" || true
 grep -q "invoke returned {'RUNNING_MODAL'}" "$OUT/modal.log" \
   && grep -q "finished: collection present with 3 objects" "$OUT/modal.log" \
+  && grep -q "status bar: shown while running True, after False" "$OUT/modal.log" \
   || { tail -20 "$OUT/modal.log"; echo "the modal Reconstruct did not finish with the tree" >&2; exit 1; }
 "$RB" gui-shot "$OUT/cancel.png" --size 1200x800 --wait 15 -- \
   blender --factory-startup --python tests/gui/modal_run.py -- --cancel > "$OUT/cancel.log" 2>&1 || true

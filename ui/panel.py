@@ -23,6 +23,21 @@ def _video_info(path: str):
     return _INFO_CACHE[key]
 
 
+def path_field(layout, props, name: str, **kw) -> bool:
+    """Draw the file-path property ``name``; a path that names no file is drawn red with "File not
+    found" under it, as soon as it is typed (the check is cached per path: draw stays cheap).
+    Returns True if the field is empty or names an existing file."""
+    from ..operators.scene import checks
+    path = getattr(props, name)
+    missing = bool(path) and not checks.exists(path)
+    row = layout.row()
+    row.alert = missing
+    row.prop(props, name, **kw)
+    if missing:
+        layout.label(text="File not found", icon="ERROR")
+    return not missing
+
+
 class _TreePanel:
     bl_space_type = "VIEW_3D"
     bl_region_type = "UI"
@@ -56,10 +71,13 @@ class TREE_PT_main(_TreePanel, bpy.types.Panel):
         row = layout.row()
         row.enabled = not running
         row.operator("tree_video.preview", icon="TRACKING")
-        if running:
+        if running:                       # the progress once: a bar with the stage and its percentage
+            from ..operators import jobs
             col = layout.column(align=True)
-            col.label(text=f"{wm.tree_video_status.capitalize()} — {wm.tree_video_progress:.0f}%", icon="TIME")
-            col.prop(wm, "tree_video_progress", text="", slider=True)
+            if hasattr(col, "progress"):      # Blender 4.0+
+                col.progress(factor=wm.tree_video_progress / 100.0, type="BAR", text=jobs.status_text(wm))
+            else:
+                col.label(text=jobs.status_text(wm), icon="TIME")
             col.operator("tree_video.cancel", icon="CANCEL")
 
 
@@ -70,7 +88,7 @@ class TREE_PT_source(_TreePanel, bpy.types.Panel):
     def draw(self, context):
         props = context.scene.tree_video
         col = self.column()
-        col.prop(props, "video_path")
+        path_field(col, props, "video_path")
         info = _video_info(props.video_path)
         if info is not None:
             col.label(text=f"{info.width}×{info.height}, {info.frame_count} frames, {info.fps:.3g} fps",
@@ -92,9 +110,11 @@ class TREE_PT_outline(_TreePanel, bpy.types.Panel):
         col = self.column()
         col.prop(props, "outline_source")
         if props.outline_source == "FILE":
-            col.prop(props, "outline_path")
+            path_field(col, props, "outline_path")
         elif props.outline_source == "AUTO":
-            col.label(text="Found from motion; check it with Track & Preview", icon="INFO")
+            hint = col.column(align=True)
+            hint.label(text="Found from what sways in wind:", icon="INFO")
+            hint.label(text="check it with Track & Preview", icon="BLANK1")
         elif props.outline_source == "ANNOTATION":
             from ..operators.scene import annotation
             col.operator("tree_video.open_clip", icon="TRACKER")
@@ -157,7 +177,7 @@ class TREE_PT_output(_TreePanel, bpy.types.Panel):
         sub.prop(props, "leaf_cards")
         sub.prop(props, "flutter_hz", text="Flutter (Hz)")
         sub.prop(props, "flutter_gain")
-        sub.prop(props, "leaf_image")
+        path_field(sub, props, "leaf_image")
         if props.leaf_polygons:
             sub.label(text=f"Last tree: {props.leaf_polygons:,} leaf polygons", icon="INFO")
 
@@ -174,7 +194,7 @@ class TREE_PT_generate(_TreePanel, bpy.types.Panel):
         if props.species_source == "LIBRARY":
             col.prop(props, "species_name")
         elif props.species_source == "FILE":
-            col.prop(props, "species_path")
+            path_field(col, props, "species_path")
         if props.species_source == "RECONSTRUCTION" or props.envelope_source == "SOURCE":
             coll, why = stored.selected(context)        # the tree kept in the file that is used
             col.label(text=f"{coll.name} ({why})" if coll is not None else why,
@@ -183,7 +203,7 @@ class TREE_PT_generate(_TreePanel, bpy.types.Panel):
         col.separator()
         col.prop(props, "envelope_source")
         if props.envelope_source == "IMAGE":
-            col.prop(props, "envelope_image")
+            path_field(col, props, "envelope_image")
         elif props.envelope_source == "CURVE":
             col.prop(props, "envelope_curve")
         col.prop(props, "gen_seed")
@@ -192,17 +212,17 @@ class TREE_PT_generate(_TreePanel, bpy.types.Panel):
         col.prop(props, "gen_frames")
         col.prop(props, "gen_leaf_density", slider=True)
         col.prop(props, "gen_wind")
-        col.prop(props, "gen_audio")
+        path_field(col, props, "gen_audio")
         col.operator("tree_video.generate", icon="OUTLINER_OB_FORCE_FIELD")
         col.separator()
         col.prop(props, "forest_name")
         col.prop(props, "forest_count")
         col.prop(props, "forest_spacing")
         col.prop(props, "forest_ground")
-        if props.forest_ground is None:
-            row = col.row(align=True)
-            row.prop(props, "forest_width")
-            row.prop(props, "forest_depth")
+        if props.forest_ground is None:        # one row each: side by side, the Depth label was lost
+            sub = col.column(align=True)
+            sub.prop(props, "forest_width")
+            sub.prop(props, "forest_depth")
         col.operator("tree_video.generate_forest", icon="OUTLINER_COLLECTION")
 
 
@@ -212,77 +232,11 @@ class TREE_PT_export(_TreePanel, bpy.types.Panel):
     bl_options = {"DEFAULT_CLOSED"}
 
     def draw(self, context):
-        draw_export(self.layout, context)
+        from ..operators.export_op import draw_settings
+        draw_settings(self.layout, context)
         col = self.column()
         col.separator()
         col.operator("tree_video.trace_skeleton", icon="FILE", text="Save 2D Skeleton (.npz)")
-
-
-def _names(colls, limit: int = 3) -> str:
-    shown = ", ".join(c.name for c in colls[:limit])
-    return shown + (f" and {len(colls) - limit} more" if len(colls) > limit else "")
-
-
-def draw_export(layout, context, dialog: bool = False) -> None:
-    """The export settings and what pressing Export will write (the Export sub-panel, and the
-    File › Export › Tree from Video dialog, which has its own Export button)."""
-    from ..core.errors import InputError
-    from ..operators import export_op
-    from ..operators.scene import trees
-    props = context.scene.tree_video
-    layout.use_property_split = True
-    layout.use_property_decorate = False
-    col = layout.column()
-    if not trees.file_trees():
-        col.label(text="No tree in this file yet: Reconstruct or Generate one", icon="INFO")
-    row = col.row()
-    row.use_property_split = False
-    row.prop(props, "export_scope", expand=True)
-    if props.export_scope == "PICK":
-        col.prop(props, "export_tree")
-    colls = export_op.targets(context, props)
-    if colls:
-        col.label(text=f"{len(colls)} {'tree' if len(colls) == 1 else 'trees'}: {_names(colls)}",
-                  icon="OUTLINER_OB_ARMATURE")
-    elif props.export_scope == "SELECTED":
-        col.label(text="Click a tree in the viewport, or Pick a Tree", icon="RESTRICT_SELECT_OFF")
-    if len(colls) <= 1:
-        col.prop(props, "export_name", placeholder=bpy.path.clean_name(colls[0].name) if colls else "")
-    else:
-        col.label(text="Files are named after each tree", icon="FILE")
-    col.prop(props, "export_format")
-    col.prop(props, "output_dir")
-    col.prop(props, "overwrite")
-    problem = None
-    if colls:
-        try:
-            export_op.plan(context, props)
-        except InputError as exc:
-            problem = str(exc)
-    if problem:
-        box = col.box().column(align=True)
-        width = 440 if dialog or context.region is None else context.region.width / context.preferences.view.ui_scale
-        for k, line in enumerate(_wrap(problem, max(int((width - 70) / 6.2), 20))):
-            box.label(text=line, icon="ERROR" if k == 0 else "BLANK1")
-    if not dialog:
-        row = col.row()
-        row.scale_y = 1.3
-        n = len(colls)
-        row.operator("tree_video.export", icon="EXPORT", text=f"Export {n} Trees" if n > 1 else "Export Tree")
-    if export_op.LAST_EXPORT and not dialog:
-        last = export_op.LAST_EXPORT
-        sub = col.column(align=True)
-        sub.label(text=f"Last export: {len(last)} {'file' if len(last) == 1 else 'files'}", icon="CHECKMARK")
-        for path in last[:3]:
-            sub.label(text=path, icon="BLANK1")
-        if len(last) > 3:
-            sub.label(text=f"… and {len(last) - 3} more", icon="BLANK1")
-
-
-def _wrap(text: str, width: int) -> list:
-    """``text`` in lines of at most ``width`` characters (a label does not wrap)."""
-    import textwrap
-    return textwrap.wrap(text, width) or [""]
 
 
 def _in_clip_editor(panel, name: str, parent: str | None = None):
@@ -301,6 +255,7 @@ def _in_clip_editor(panel, name: str, parent: str | None = None):
 TREE_PT_clip_main = _in_clip_editor(TREE_PT_main, "TREE_PT_clip_main")
 TREE_PT_clip_source = _in_clip_editor(TREE_PT_source, "TREE_PT_clip_source", "TREE_PT_clip_main")
 TREE_PT_clip_outline = _in_clip_editor(TREE_PT_outline, "TREE_PT_clip_outline", "TREE_PT_clip_main")
+
 
 classes = (TREE_PT_main, TREE_PT_source, TREE_PT_outline, TREE_PT_reconstruction, TREE_PT_output, TREE_PT_generate,
            TREE_PT_export, TREE_PT_clip_main, TREE_PT_clip_source, TREE_PT_clip_outline)

@@ -12,7 +12,8 @@ from _addon import register_with_sample  # noqa: E402
 props = register_with_sample()
 props.collection_name = "Modal Tree"
 CANCEL = "--cancel" in sys.argv
-state = {"t0": None, "seen": set(), "ticks": 0}
+state = {"t0": None, "seen": set(), "ticks": 0, "status_bar": False}
+from tree_from_video.operators import jobs  # noqa: E402  (registered above)
 
 
 def start():
@@ -32,6 +33,7 @@ def watch():
     state["ticks"] += 1                      # the UI thread keeps running timers: Blender is responsive
     if wm.tree_video_status:
         state["seen"].add(wm.tree_video_status.split()[0])
+        state["status_bar"] |= jobs.status_bar_shown()         # the job's progress in the status bar
         if CANCEL and wm.tree_video_progress > 10 and "cancel_sent" not in state:
             state["cancel_sent"] = time.monotonic()
             wm["tree_video_cancel"] = True
@@ -41,6 +43,7 @@ def watch():
         return 0.05
     coll = bpy.data.collections.get("Modal Tree")
     print(f"stages seen: {sorted(state['seen'])}; timer ticks while running: {state['ticks']}", flush=True)
+    print(f"status bar: shown while running {state['status_bar']}, after {jobs.status_bar_shown()}", flush=True)
     if CANCEL:
         print(f"after cancel: collection {'present' if coll else 'absent'}, objects {len(bpy.data.objects)}, "
               f"stopped {time.monotonic() - state.get('cancel_sent', time.monotonic()):.2f} s after the request", flush=True)

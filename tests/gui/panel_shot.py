@@ -1,7 +1,9 @@
 """GUI set-up for a screenshot of the panel: register the add-on from the repo, reconstruct the
-sample tree, open the sidebar on the "Tree" tab with every sub-panel expanded.
+sample tree, open the sidebar (default width) on the "Tree" tab with the reconstruction's
+sub-panels expanded. The tree in the viewport, Solid view: no bone sticks, no selection outline,
+leaves in their own green (printed as a "viewport:" line the CI checks).
 
-    real-blender gui-shot docs/panel.png --size 1600x900 -- blender --factory-startup --python tests/gui/panel_shot.py
+    real-blender gui-shot docs/panel.png --size 1600x1280 -- blender --factory-startup --python tests/gui/panel_shot.py
 """
 import os
 import sys
@@ -18,6 +20,12 @@ props.use_frame_range, props.frame_start, props.frame_end = True, 0, 60
 props.show_advanced = True
 props.collection_name = "Broad Tree"
 print("reconstruct:", bpy.ops.tree_video.reconstruct("EXEC_DEFAULT"), flush=True)
+tree = bpy.data.collections["Broad Tree"]
+rig = next(ob for ob in tree.objects if ob.type == "ARMATURE")
+leaf = next(ob for ob in tree.objects if ob.name.endswith("Leaves")).data.materials[0].diffuse_color
+print(f"viewport: {sum(ob.select_get() for ob in tree.objects)} selected, "
+      f"bones hidden {all(not any(c.is_visible for c in b.collections) for b in rig.data.bones)}, "
+      f"leaf solid colour green {leaf[1] > 1.2 * max(leaf[0], leaf[2])}", flush=True)
 
 
 def front_view(space, r3d):
