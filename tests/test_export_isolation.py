@@ -138,3 +138,35 @@ def test_exports_leave_every_trees_action_assigned(tmp_path):
              if ob.animation_data is not None and ob.animation_data.action is not None}
     assert before == after and len(before) >= 4
     assert os.path.getsize(tmp_path / "r.glb") > 0
+
+
+def test_the_artists_flow_through_the_operators(tmp_path):
+    """The issue's flow through the buttons: Reconstruct, Export (GLB), Generate Tree, Export the
+    reconstruction again — the two files hold the same animation."""
+    import tree_from_video as pkg
+
+    from samples import committed
+    pkg.register()
+    try:
+        p = bpy.context.scene.tree_video
+        p.video_path = os.path.join(committed("broad"), "video.mp4")
+        p.outline_path = os.path.join(committed("broad"), "outline.json")
+        p.use_frame_range, p.frame_start, p.frame_end = True, 0, 40
+        p.build_leaves, p.twig_depth = False, 0
+        assert bpy.ops.tree_video.reconstruct("EXEC_DEFAULT") == {"FINISHED"}
+        recon = bpy.data.collections[p.collection_name]
+        p.export_scope, p.export_tree, p.export_format = "PICK", recon, "GLB"
+        p.output_dir, p.export_name = str(tmp_path), "first"
+        assert bpy.ops.tree_video.export("EXEC_DEFAULT") == {"FINISHED"}
+        p.species_source, p.envelope_source, p.species_name = "LIBRARY", "CIRCLE", "broad"
+        p.gen_frames, p.gen_nodes = 90, 80
+        assert bpy.ops.tree_video.generate("EXEC_DEFAULT") == {"FINISHED"}
+        p.export_scope, p.export_tree, p.export_name = "PICK", recon, "second"
+        assert bpy.ops.tree_video.export("EXEC_DEFAULT") == {"FINISHED"}
+        a, b = _gltf_rotations(tmp_path / "first.glb"), _gltf_rotations(tmp_path / "second.glb")
+        assert set(a) == set(b) and len(a) > 50
+        for name in a:
+            assert len(b[name][0]) == 40, name                      # the reconstruction's 40 keys, not 90
+            np.testing.assert_array_equal(a[name][1], b[name][1])
+    finally:
+        pkg.unregister()
