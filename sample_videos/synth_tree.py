@@ -48,6 +48,19 @@ and bands that move with the branch).  Leaves are small anti-aliased pointed hex
 Then an optional moving occluder (person-like blob), the camera translation, Gaussian sensor noise
 and an optional JPEG round-trip; the video is written with ``cv2.VideoWriter`` ('mp4v').
 
+Wind and light of real footage (``WIND_VARIANTS``; every option off by default, drawn from random
+streams of their own so that a config without them renders exactly what it did before they existed)
+-------------------------------------------------------------------------------------------------
+Leaf cards that turn (``leaf_turn_deg``: each leaf about its petiole, its width foreshortening and its
+shading changing), the thinnest branches swinging 5-15 deg (``thin_swing_deg``), strong gusts that
+lean the crown by 5-10 % of the height within a second (``gust_lean``), a global light gain with a
+slow and a fast part (``flicker``) and drifting cloud shadows (``cloud_shadow``), a blurred branch in
+front of the crown (``foreground``, its per-frame mask in the truth), a palm (``kind="palm"``: a
+curved trunk and drooping fronds of leaflets, each a chain of one-segment branches that bends), H.264
+through the ffmpeg CLI (``encoder="h264"``) and frames at irregular times in an MKV whose header
+declares another rate (``vfr_header_fps``). Every frame has a time (``frame_times``); the motion is
+evaluated at those times. ``SEEDS`` lists each variant's development and held-out seeds.
+
 Everything is seeded: the same config gives identical ``truth.npz`` and identical frames before
 encoding (``render_frame`` is a pure function of the scene and the frame index).
 """
@@ -58,7 +71,10 @@ import argparse
 import json
 import math
 import os
+import shutil
+import subprocess
 import sys
+import tempfile
 import time
 from dataclasses import dataclass, fields
 from pathlib import Path
@@ -67,7 +83,14 @@ from typing import Callable
 import cv2
 import numpy as np
 
-VARIANTS = ("broad", "conifer", "sparse", "hard", "gentle", "grey", "dense")
+#: the variants of the first sample set; their output (truth and frames) must never change
+OLD_VARIANTS = ("broad", "conifer", "sparse", "hard", "gentle", "grey", "dense")
+#: variants that move like trees in real wind (issue 18): leaf cards that turn, strong gusts, thin
+#: branches swinging, flickering light, a foreground branch, a conifer in a storm, a palm, a 30 s,
+#: a 160x120, a 1080p H.264 and a variable-frame-rate clip
+WIND_VARIANTS = ("flutter", "gusts", "flicker", "foreground", "conifer_storm", "palm", "long", "tiny", "hd",
+                 "vfr")
+VARIANTS = OLD_VARIANTS + WIND_VARIANTS
 
 _SHIFT = 4                     # fractional bits for OpenCV drawing (1/16 px precision)
 _SUB = float(1 << _SHIFT)
@@ -77,9 +100,12 @@ _UP = np.array([0.0, 0.0, 1.0])
 
 # independent random streams (combined with the seed through np.random.SeedSequence)
 _S_TREE, _S_LEAVES, _S_MOTION, _S_BACKGROUND, _S_CAMERA, _S_NOISE, _S_OUTLINE, _S_BARK = range(1, 9)
+# streams of the wind and light options: drawn only when an option is on, so that a config without
+# them gives exactly the output it gave before they existed
+_S_TURN, _S_SWING, _S_LEAN, _S_LIGHT, _S_FOREGROUND, _S_TIMES, _S_PALM = range(9, 16)
 
 # label values of render_labels
-LABEL_BACKGROUND, LABEL_BRANCH, LABEL_LEAF, LABEL_OCCLUDER = 0, 1, 2, 3
+LABEL_BACKGROUND, LABEL_BRANCH, LABEL_LEAF, LABEL_OCCLUDER, LABEL_FOREGROUND = 0, 1, 2, 3, 4
 
 
 # ----------------------------------------------------------------------------------------------
@@ -98,7 +124,7 @@ class SynthConfig:
     seed: int = 0
     bark: str = "brown"              # "brown" | "grey"
     # --- tree shape
-    kind: str = "deciduous"          # "deciduous" | "conifer"
+    kind: str = "deciduous"          # "deciduous" | "conifer" | "palm"
     max_order: int = 4               # deepest branching order (trunk = 0)
     children: tuple = (2, 3)         # min/max children per split (deciduous)
     branch_angle_deg: tuple = (25.0, 50.0)   # child angle from the parent direction
@@ -128,6 +154,21 @@ class SynthConfig:
     drift_px: float = 0.0            # @360, slow camera drift over the whole clip
     occluder: bool = False           # person-like object crossing in front of the trunk
     jpeg_quality: int = 0            # 0 = off, else JPEG round-trip quality per frame
+    # --- wind and light of real footage; every option is off by default
+    leaf_turn_deg: tuple = (0.0, 0.0)   # per-leaf turning amplitude range (deg; 0 = leaves only translate)
+    leaf_turn_hz: tuple = (2.0, 6.0)    # per-leaf turning frequency range (Hz), each leaf its own phase
+    thin_swing_deg: tuple = (0.0, 0.0)  # swing amplitude range (deg) of the thinnest branches (last order)
+    thin_swing_hz: tuple = (0.8, 2.0)   # their swing frequency range (Hz)
+    gust_lean: tuple = (0.0, 0.0)       # strong gusts: lean of the crown top, share of the tree height
+    gust_count: int = 2                 # strong gusts in the clip (one after another, from 1 s on)
+    gust_rise_s: tuple = (0.5, 1.0)     # time from calm to the full lean (s)
+    flicker: float = 0.0                # global light gain range +- (0.1-0.2), a slow and a fast part
+    cloud_shadow: float = 0.0           # darkening in drifting cloud shadows (0 = none, 0.3 = 30 %)
+    foreground: bool = False            # a blurred branch in front of the tree swinging across the crown
+    fronds: tuple = (8, 14)             # palm: frond count range
+    encoder: str = "mp4v"               # "mp4v" (cv2.VideoWriter, video.mp4) | "h264" (ffmpeg CLI, libx264)
+    vfr_header_fps: float = 0.0         # > 0: frames at irregular times (mean rate fps), H.264 in video.mkv
+    #                                     whose header declares this rate
 
 
 _PRESETS: dict[str, dict] = {
@@ -148,6 +189,30 @@ _PRESETS: dict[str, dict] = {
                   trunk_frac=0.3,
                   seed=6),
 }
+_CONIFER = {k: v for k, v in _PRESETS["conifer"].items() if k != "seed"}
+_WIND = dict(leaf_turn_deg=(5.0, 15.0), thin_swing_deg=(5.0, 15.0))
+_GUSTS = dict(gust_lean=(0.05, 0.10), gust_count=2, gust_rise_s=(0.5, 1.0))
+_PRESETS.update({
+    "flutter": dict(_WIND),                                                  # steady breeze, leaves turning
+    "gusts": dict(_WIND, **_GUSTS),                                          # two gusts that lean the crown
+    "flicker": dict(_WIND, flicker=0.15, cloud_shadow=0.3),                  # light gain +-15 %, clouds
+    "foreground": dict(_WIND, foreground=True),                              # a blurred branch in front
+    "conifer_storm": dict(_CONIFER, **_WIND, **_GUSTS, sway_scale=5.0, gust_rad=0.03),
+    "palm": dict(kind="palm", bark="grey", height_frac=0.84, trunk_radius_frac=0.016, leaf_size_px=(10.0, 24.0),
+                 cluster_radius_px=2.0, leaf_turn_deg=(5.0, 15.0), gust_lean=(0.05, 0.10), gust_count=2,
+                 sway_scale=1.0),
+    "long": dict(_WIND, frames=720, gust_lean=(0.05, 0.08), gust_count=4),  # 30 s
+    "tiny": dict(_CONIFER, **_WIND, **_GUSTS, width=160, height=120, fps=15.0, frames=150, sway_scale=7.0,
+                 freq_scale=1.5, height_frac=0.78),          # a webcam-like clip of a young conifer, gusty
+    "hd": dict(_WIND, width=1920, height=1080, frames=48, encoder="h264", sway_scale=1.5),
+    "vfr": dict(_WIND, fps=12.0, frames=96, vfr_header_fps=30.0, encoder="h264"),
+})
+
+#: seeds per variant: "dev" ones may be looked at while developing the reconstruction, "held_out"
+#: ones never (sample_videos/README.md); the preset's own seed is the first dev seed
+SEEDS: dict[str, dict[str, tuple]] = {
+    v: {"dev": (int(_PRESETS[v].get("seed", 0)),), "held_out": (101, 102)} for v in OLD_VARIANTS}
+SEEDS.update({v: {"dev": (0, 1), "held_out": (2, 3)} for v in WIND_VARIANTS})
 
 
 def config_for(variant: str, **overrides) -> SynthConfig:
@@ -193,6 +258,9 @@ class Tree:
     branch_base (B,) int32 joint node each branch rotates about; branch_depth (B,) int32;
     branch_base_radius (B,) float64 px radius where the branch leaves its joint;
     branch_nodes: list of B int arrays, the branch's own nodes from base to tip (joint excluded).
+    Palms only: part (N,) int8 0 = trunk, 1 = frond; frond (N,) int32 frond index (-1 on the
+    trunk); trunk_branches (T,) int the trunk's chain of one-segment branches, root first;
+    frond_branches: list of int arrays, each frond's chain of one-segment branches, base first.
     """
 
     rest: np.ndarray
@@ -205,6 +273,10 @@ class Tree:
     branch_depth: np.ndarray
     branch_base_radius: np.ndarray
     branch_nodes: list
+    part: np.ndarray | None = None
+    frond: np.ndarray | None = None
+    trunk_branches: np.ndarray | None = None
+    frond_branches: list | None = None
 
 
 class _TreeBuilder:
@@ -349,6 +421,75 @@ def _add_conifer_twigs(tb: _TreeBuilder, rng: np.random.Generator, sb: int, leng
                 tb.add_branch(sb, node, td, length * rng.uniform(0.3, 0.45), 2, 2, 0.05, -0.02)
 
 
+def _grow_palm(cfg: SynthConfig, rng: np.random.Generator) -> tuple[_TreeBuilder, list, list]:
+    """Palm in nominal units (trunk length 1): a trunk of 7-9 one-segment branches that leans and
+    curves (a C or an S), and ``cfg.fronds`` fronds from its top, each a chain of 7 one-segment
+    branches that arches out and droops. Returns the builder, the trunk's branches and the
+    fronds' branch chains."""
+    tb = _TreeBuilder(rng)
+    n_t = int(rng.integers(7, 10))
+    side = 1.0 if rng.random() < 0.5 else -1.0
+    lean_dir = _unit(np.array([side, rng.uniform(-0.5, 0.5), 0.0]))
+    lean0 = rng.uniform(0.06, 0.3)                    # rad from vertical at the base
+    curve = rng.uniform(-0.2, 1.4)                    # > 1: bends back past vertical (an S)
+    seg_len = 1.0 / n_t
+    trunk, node, parent_b = [], 0, -1
+    for k in range(n_t):
+        ang = lean0 * (1.0 - curve * k / (n_t - 1)) + rng.normal(0, 0.015)
+        d = _unit(math.sin(ang) * lean_dir + math.cos(ang) * _UP)
+        parent_b = tb.add_branch(parent_b, node, d, seg_len, 0, 1, 0.0, 0.0)
+        node = tb.b_nodes[parent_b][-1]
+        trunk.append(parent_b)
+    top = node
+    n_f = int(rng.integers(cfg.fronds[0], cfg.fronds[1] + 1))
+    golden = np.pi * (3.0 - math.sqrt(5.0))
+    az0 = rng.uniform(0, 2 * np.pi)
+    order = rng.permutation(n_f)
+    fronds = []
+    for i in range(n_f):
+        az = az0 + golden * i + rng.uniform(-0.2, 0.2)
+        rank = order[i] / max(n_f - 1, 1)             # 0: the youngest, most upright frond
+        polar = np.radians(15.0 + 70.0 * rank + rng.uniform(-5, 5))
+        length = rng.uniform(0.42, 0.62) * (0.8 + 0.2 * rank)
+        n_s = 7
+        droop = rng.uniform(0.12, 0.24)
+        chain, b, base = [], trunk[-1], top
+        for k in range(n_s):
+            pol = min(polar + droop * k * (1.0 + k / n_s), np.radians(165.0))
+            d = _child_direction(_UP, pol, az)
+            b = tb.add_branch(b, base, d, length / n_s, 1, 1, 0.0, 0.0)
+            base = tb.b_nodes[b][-1]
+            chain.append(b)
+        fronds.append(chain)
+    return tb, trunk, fronds
+
+
+def _palm_radii(cfg: SynthConfig, tb: _TreeBuilder, trunk: list, fronds: list,
+                scale: float) -> tuple[np.ndarray, np.ndarray]:
+    """Radii (px) of a palm: per node (N,) and per branch base (B,). The trunk hardly tapers
+    (``trunk_radius_frac`` x height at the base, a flare below, 80 % at the top), a frond's rachis
+    goes from 1.5 to 0.5 px @360."""
+    s = _scale(cfg)
+    n = len(tb.pos)
+    radius = np.zeros(n)
+    base_r = np.zeros(len(tb.b_parent))
+    r_trunk = cfg.trunk_radius_frac * cfg.height
+    z = np.array(tb.pos)[:, 2] * scale
+    z_top = z[tb.b_nodes[trunk[-1]][-1]]
+    for b in trunk:
+        nd = tb.b_nodes[b][-1]
+        radius[nd] = r_trunk * (1.0 - 0.2 * z[nd] / max(z_top, 1e-9))
+    radius[0] = r_trunk * 1.35
+    for b in trunk:
+        base_r[b] = radius[tb.b_base[b]] if tb.b_base[b] != 0 else r_trunk * 1.1
+    for chain in fronds:
+        for k, b in enumerate(chain):
+            nd = tb.b_nodes[b][-1]
+            radius[nd] = max(1.5 * s * (1.0 - (k + 1) / len(chain)) + 0.5 * s, 0.4)
+            base_r[b] = 1.5 * s if k == 0 else radius[tb.b_base[b]]
+    return radius, base_r
+
+
 def _pipe_radii(tb: _TreeBuilder, taper: float = 0.3) -> tuple[np.ndarray, np.ndarray]:
     """Pipe-model radii (nominal tip radius 1): per node (N,) and per branch base (B,)."""
     n_nodes, n_br = len(tb.pos), len(tb.b_parent)
@@ -373,6 +514,8 @@ def _pipe_radii(tb: _TreeBuilder, taper: float = 0.3) -> tuple[np.ndarray, np.nd
 def build_tree(cfg: SynthConfig) -> Tree:
     """Grow the tree of ``cfg`` and scale it to frame pixels (see module docstring)."""
     rng = _rng(cfg, _S_TREE)
+    if cfg.kind == "palm":
+        return _build_palm(cfg, rng)
     tb = _grow_conifer(cfg, rng) if cfg.kind == "conifer" else _grow_deciduous(cfg, rng)
     pos = np.array(tb.pos)
     s = _scale(cfg)
@@ -393,6 +536,36 @@ def build_tree(cfg: SynthConfig) -> Tree:
                 branch_nodes=[np.array(n, np.int64) for n in tb.b_nodes])
 
 
+def _build_palm(cfg: SynthConfig, rng: np.random.Generator) -> Tree:
+    """The palm of ``cfg`` in frame pixels, its crown kept inside the frame's width."""
+    tb, trunk, fronds = _grow_palm(cfg, rng)
+    pos = np.array(tb.pos)
+    s = _scale(cfg)
+    leaf_margin = 1.1 * cfg.cluster_radius_px * s + 0.5 * cfg.leaf_size_px[1] * s
+    scale = (cfg.height_frac * cfg.height - leaf_margin) / pos[:, 2].max()
+    half_w = 0.5 * cfg.width - 1.2 * cfg.leaf_size_px[1] * s - 4.0 * s
+    scale = min(scale, half_w / max(np.abs(pos[:, 0]).max(), 1e-9))
+    pos *= scale
+    radius, base_r = _palm_radii(cfg, tb, trunk, fronds, scale)
+    n = len(pos)
+    part = np.zeros(n, np.int8)
+    frond = -np.ones(n, np.int32)
+    for j, chain in enumerate(fronds):
+        for b in chain:
+            part[tb.b_nodes[b]] = 1
+            frond[tb.b_nodes[b]] = j
+    return Tree(rest=pos, parents=np.array(tb.parent, np.int32),
+                node_branch=np.array(tb.node_branch, np.int32), radius=np.maximum(radius, 0.4),
+                depth_level=np.array(tb.depth, np.int32),
+                branch_parent=np.array(tb.b_parent, np.int32),
+                branch_base=np.array(tb.b_base, np.int32),
+                branch_depth=np.array(tb.b_depth, np.int32),
+                branch_base_radius=np.maximum(base_r, 0.4),
+                branch_nodes=[np.array(nd, np.int64) for nd in tb.b_nodes],
+                part=part, frond=frond, trunk_branches=np.array(trunk, np.int64),
+                frond_branches=[np.array(c, np.int64) for c in fronds])
+
+
 # ----------------------------------------------------------------------------------------------
 # foliage
 # ----------------------------------------------------------------------------------------------
@@ -400,7 +573,10 @@ def build_tree(cfg: SynthConfig) -> Tree:
 class Leaves:
     """Lv leaves in C clusters.  node/branch (Lv,) int attachment; rest (Lv, 3) world px;
     shape (Lv, 6, 2) float image-plane polygon offsets px; color list of Lv BGR tuples;
-    flutter_amp/freq/phase (Lv, 2) px / Hz / rad; cluster (Lv,) int; cluster_dark (C,) bool."""
+    flutter_amp/freq/phase (Lv, 2) px / Hz / rad; cluster (Lv,) int; cluster_dark (C,) bool.
+    Turning cards (``leaf_turn_deg``): turn_amp (Lv,) rad, turn_freq (Lv,) Hz, turn_phase (Lv,)
+    rad, tilt (Lv,) rad rest tilt of the card against the image plane. Palm leaflets: axis (Lv, 3)
+    world direction of the leaflet, so that its polygon turns with its frond segment."""
 
     node: np.ndarray
     branch: np.ndarray
@@ -412,6 +588,11 @@ class Leaves:
     flutter_phase: np.ndarray
     cluster: np.ndarray
     cluster_dark: np.ndarray
+    turn_amp: np.ndarray | None = None
+    turn_freq: np.ndarray | None = None
+    turn_phase: np.ndarray | None = None
+    tilt: np.ndarray | None = None
+    axis: np.ndarray | None = None
 
 
 _PALETTE_DECIDUOUS = ((22, 58, 30), (42, 122, 66), (74, 172, 112), (105, 212, 178))
@@ -473,7 +654,21 @@ def _fill_sites(tree: Tree, rng: np.random.Generator, count: int, r0: float):
 
 
 def build_leaves(cfg: SynthConfig, tree: Tree) -> Leaves:
-    """Leaf clusters around the outer branches with lighting-dependent greens."""
+    """Leaf clusters around the outer branches with lighting-dependent greens (palms: leaflets
+    along the fronds); with ``leaf_turn_deg`` every leaf card turns."""
+    leaves = _palm_leaves(cfg, tree) if cfg.kind == "palm" else _cluster_leaves(cfg, tree)
+    if cfg.leaf_turn_deg[1] > 0:
+        rng = _rng(cfg, _S_TURN)
+        lv = len(leaves.cluster)
+        leaves.turn_amp = np.radians(rng.uniform(*cfg.leaf_turn_deg, lv))
+        leaves.turn_freq = rng.uniform(*cfg.leaf_turn_hz, lv)
+        leaves.turn_phase = rng.uniform(0, 2 * np.pi, lv)
+        leaves.tilt = np.radians(rng.uniform(-50.0, 50.0, lv))
+    return leaves
+
+
+def _cluster_leaves(cfg: SynthConfig, tree: Tree) -> Leaves:
+    """Leaf clusters around the outer branches (deciduous and conifer)."""
     rng = _rng(cfg, _S_LEAVES)
     s = _scale(cfg)
     centres, radii, nodes = _cluster_sites(cfg, tree, rng, s)
@@ -515,6 +710,72 @@ def build_leaves(cfg: SynthConfig, tree: Tree) -> Leaves:
                   cluster_dark=c_lum < np.median(c_lum))
 
 
+_PALETTE_PALM = ((30, 78, 58), (44, 128, 98), (70, 168, 136), (112, 204, 178))
+
+
+def _palm_leaves(cfg: SynthConfig, tree: Tree) -> Leaves:
+    """Leaflets in pairs along every frond, every 2.4 px @360: longest mid-frond, hanging down
+    and out from the rachis. One cluster per frond segment."""
+    rng = _rng(cfg, _S_PALM)
+    s = _scale(cfg)
+    lmax = cfg.leaf_size_px[1] * s
+    cen, axis, node, cl, lens = [], [], [], [], []
+    for chain in tree.frond_branches:
+        base = tree.branch_base[chain[0]]
+        pts = np.concatenate([tree.rest[[base]], tree.rest[[tree.branch_nodes[b][-1] for b in chain]]])
+        seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
+        arc = np.concatenate([[0.0], np.cumsum(seg)])
+        total = arc[-1]
+        for a in np.arange(0.08 * total, 0.98 * total, 2.4 * s):
+            k = min(int(np.searchsorted(arc, a, side="right")) - 1, len(chain) - 1)
+            u = (a - arc[k]) / max(seg[k], 1e-9)
+            p = pts[k] + (pts[k + 1] - pts[k]) * u
+            tan = _unit(pts[k + 1] - pts[k])
+            side = np.cross(tan, _UP)
+            side = _unit(side) if np.linalg.norm(side) > 1e-3 else np.array([1.0, 0.0, 0.0])
+            frac = a / total
+            length = lmax * (0.35 + 0.65 * math.sin(math.pi * frac) ** 0.7) * rng.uniform(0.85, 1.1)
+            for sgn in (-1.0, 1.0):
+                beta = np.radians(rng.uniform(50.0, 70.0))
+                d = _unit(math.cos(beta) * tan + sgn * math.sin(beta) * side - rng.uniform(0.3, 0.8) * _UP)
+                cen.append(p + d * 0.5 * length)
+                axis.append(d)
+                node.append(tree.branch_nodes[chain[k]][-1])
+                cl.append(chain[k])
+                lens.append(length)
+    cen, axis = np.array(cen), np.array(axis)
+    node = np.array(node, np.int64)
+    _, cl = np.unique(np.array(cl), return_inverse=True)
+    lv = len(cen)
+    lengths = np.maximum(np.array(lens), 1.0)
+    proj = np.stack([axis[:, 0], -axis[:, 2]], 1)
+    plen = np.linalg.norm(proj, axis=1)
+    th = np.arctan2(proj[:, 1], proj[:, 0])
+    a = 0.5 * lengths * np.maximum(plen, 0.15)
+    b = np.maximum(0.5 * rng.uniform(1.2, 1.8, lv) * s, 0.35)
+    unit_x = np.array([1.0, 0.4, -0.4, -1.0, -0.4, 0.4])
+    unit_y = np.array([0.0, 1.0, 1.0, 0.0, -1.0, -1.0])
+    loc = np.stack([a[:, None] * unit_x, b[:, None] * unit_y], axis=-1)
+    c, si = np.cos(th)[:, None], np.sin(th)[:, None]
+    shape = np.stack([c * loc[..., 0] - si * loc[..., 1], si * loc[..., 0] + c * loc[..., 1]], -1)
+    palette = np.array(_PALETTE_PALM, float)
+    tone = np.clip(0.5 + 0.3 * (axis @ _SUN) + rng.normal(0, 0.12, lv), 0.0, 1.0)
+    col = np.where(tone[:, None] < 0.5,
+                   palette[0] + (palette[1] - palette[0]) * (2 * tone[:, None]),
+                   palette[1] + (palette[2] - palette[1]) * (2 * tone[:, None] - 1))
+    col[rng.random(lv) < 0.1 * tone ** 2] = palette[3]
+    col = np.clip(col + rng.normal(0, 4, (lv, 3)), 0, 255)
+    lum = col @ np.array([0.114, 0.587, 0.299])
+    ncl = int(cl.max()) + 1 if lv else 0
+    c_lum = np.bincount(cl, lum, ncl) / np.maximum(np.bincount(cl, None, ncl), 1)
+    return Leaves(node=node, branch=tree.node_branch[node], rest=cen, shape=shape,
+                  color=[tuple(float(v) for v in c) for c in col],
+                  flutter_amp=cfg.flutter_px * s * rng.uniform(0.3, 1.0, (lv, 2)),
+                  flutter_freq=rng.uniform(2.0, 4.5, (lv, 2)),
+                  flutter_phase=rng.uniform(0, 2 * np.pi, (lv, 2)), cluster=cl,
+                  cluster_dark=c_lum < np.median(c_lum), axis=axis)
+
+
 def _leaf_shapes(rng: np.random.Generator, n: int, size_range: np.ndarray, needle: bool) -> np.ndarray:
     """(n, 6, 2) pointed-ellipse leaf polygons (px offsets) with random size and orientation."""
     a = 0.5 * rng.uniform(size_range[0], size_range[1], n)
@@ -537,12 +798,18 @@ _FREQ_BY_DEPTH = np.array([0.35, 0.5, 0.7, 0.9, 1.1, 1.25])            # Hz
 @dataclass
 class Motion:
     """Per-branch world transforms x -> A[b, f] @ x + t[b, f] (A (B, F, 3, 3), t (B, F, 3), px),
-    dominant sway frequency per branch (B,) Hz, camera offset (F, 2) px."""
+    dominant sway frequency per branch (B,) Hz, camera offset (F, 2) px. With the wind options:
+    swing_deg (B,) swing amplitude of the thinnest branches (deg, 0 on the others); lean (F,) the
+    strong gusts' lean of the crown top, share of the tree height, and gusts {"onset", "rise",
+    "lean"} (G,) s / s / share of the height."""
 
     A: np.ndarray
     t: np.ndarray
     branch_freq: np.ndarray
     camera_offset: np.ndarray
+    swing_deg: np.ndarray | None = None
+    lean: np.ndarray | None = None
+    gusts: dict | None = None
 
 
 def _rodrigues(w: np.ndarray) -> np.ndarray:
@@ -603,6 +870,158 @@ def _gust(cfg: SynthConfig, rng: np.random.Generator, t: np.ndarray) -> np.ndarr
     return cfg.gust_rad * g[:, None] * axis
 
 
+def frame_times(cfg: SynthConfig) -> np.ndarray:
+    """Time of every frame since the first (F,) float64 s: ``f / fps``; with ``vfr_header_fps``
+    irregular steps (log-normal around 1 / fps, a few gaps of 3-7 steps) whose mean rate is
+    ``fps``, in whole milliseconds (what the MKV container stores)."""
+    nf = cfg.frames
+    if cfg.vfr_header_fps <= 0:
+        return np.arange(nf) / cfg.fps
+    rng = _rng(cfg, _S_TIMES)
+    dt = rng.lognormal(0.0, 0.35, max(nf - 1, 0))
+    gap = rng.random(len(dt)) < 0.05
+    dt[gap] *= rng.uniform(3.0, 7.0, int(gap.sum()))
+    dt = dt / max(dt.mean(), 1e-12) / cfg.fps if len(dt) else dt
+    t = np.concatenate([[0.0], np.cumsum(dt)])
+    return np.round(t * 1000.0) / 1000.0
+
+
+def _thin_swing(cfg: SynthConfig, tree: Tree, t: np.ndarray, omega: np.ndarray,
+                dominant: np.ndarray) -> np.ndarray:
+    """Replace the sway of the thinnest branches (the last order) by a swing of ``thin_swing_deg``
+    at ``thin_swing_hz`` about the normal of the plane of the branch and its parent's last
+    segment, so the branching angle opens and closes by exactly the swing. Edits ``omega`` (B, F,
+    3) and ``dominant`` (B,) in place; returns the amplitude per branch (B,) deg (0 elsewhere)."""
+    rng = _rng(cfg, _S_SWING)
+    depth = tree.branch_depth
+    thin = np.flatnonzero((depth == depth.max()) & (depth >= 1))
+    amp = np.zeros(len(depth))
+    a = rng.uniform(*cfg.thin_swing_deg, len(thin))
+    f = rng.uniform(*cfg.thin_swing_hz, len(thin))
+    ph = rng.uniform(0, 2 * np.pi, len(thin))
+    for i, b in enumerate(thin):
+        base = tree.branch_base[b]
+        chord = tree.rest[tree.branch_nodes[b][-1]] - tree.rest[base]
+        pseg = tree.rest[base] - tree.rest[tree.parents[base]]
+        ax = np.cross(pseg, chord)
+        if np.linalg.norm(ax) < 0.05 * np.linalg.norm(pseg) * np.linalg.norm(chord):
+            ax = np.cross(chord, np.array([1.0, 0.0, 0.0]))
+            if np.linalg.norm(ax) < 1e-6 * np.linalg.norm(chord):
+                ax = np.array([0.0, 1.0, 0.0])
+        omega[b] = (math.radians(a[i]) * np.sin(2 * np.pi * f[i] * t + ph[i]))[:, None] * _unit(ax)
+        dominant[b] = f[i]
+        amp[b] = a[i]
+    return amp
+
+
+def crown_top(rest: np.ndarray) -> np.ndarray:
+    """Indices of the nodes in the top 10 % of the skeleton's height (rest (N, 3), z up): the
+    nodes whose lean the strong gusts are set by."""
+    z = rest[:, 2]
+    return np.flatnonzero(z >= z.max() - 0.1 * (z.max() - z.min()))
+
+
+def _smoothstep(x: np.ndarray) -> np.ndarray:
+    x = np.clip(x, 0.0, 1.0)
+    return x * x * (3.0 - 2.0 * x)
+
+
+def _lean(cfg: SynthConfig, tree: Tree, t: np.ndarray, leaves: Leaves | None = None) -> dict:
+    """Strong gusts: ``gust_count`` events from 1 s on, one after another, each rising within
+    ``gust_rise_s`` to a lean of the crown top of ``gust_lean`` x the tree height (smoothstep),
+    holding 0.8-2 s (a 5 % wobble), falling back within 1.2-2.5 s. The lean is a rotation about
+    +-y (wind along x) split between the trunk (about the root) and the trunk's children (about
+    the first split; a palm: its trunk segments alike), scaled so that the mean x displacement of
+    :func:`crown_top` is the lean (small angles). Returns {"theta" (F,) rad, "weight" (B,),
+    "axis" (3,), "lean" (F,) share of the height, "onset", "rise", "peak" (G,)}."""
+    rng = _rng(cfg, _S_LEAN)
+    total = float(t[-1]) if len(t) else 0.0
+    g_n = max(int(cfg.gust_count), 1)
+    t0 = min(1.0, 0.1 * total)
+    slot = (total - t0) / g_n
+    prof = np.zeros(len(t))
+    onset, rise, peak = [], [], []
+    for g in range(g_n):
+        start = t0 + g * slot
+        r = rng.uniform(*cfg.gust_rise_s)
+        hold = rng.uniform(0.8, 2.0)
+        rel = rng.uniform(1.2, 2.5)
+        on = start + rng.uniform(0.0, 0.3) * slot
+        avail = start + slot - on
+        if r + hold + rel > avail:
+            k = max((avail - r) / (hold + rel), 0.2)
+            hold, rel = hold * k, rel * k
+        lean = rng.uniform(*cfg.gust_lean)
+        x = t - on
+        wob = 1.0 - 0.025 * (1.0 - np.cos(2 * np.pi * 0.7 * np.clip(x - r, 0, None) + rng.uniform(0, 6.3)))
+        up = _smoothstep(x / r)
+        down = 1.0 - _smoothstep((x - r - hold) / max(rel, 1e-6))
+        prof += lean * up * down * np.where(x > r, wob, 1.0)
+        onset.append(on)
+        rise.append(r)
+        peak.append(lean)
+    nb = len(tree.branch_parent)
+    w = np.zeros(nb)
+    if tree.trunk_branches is not None:
+        w[tree.trunk_branches] = 1.0 / len(tree.trunk_branches)
+    else:
+        w[0] = 0.5
+        w[tree.branch_parent == 0] = 0.5
+    top = crown_top(tree.rest)
+    arm = []
+    for n in top:                                     # sum over the node's branch and its ancestors
+        b, acc = int(tree.node_branch[n]), 0.0
+        while b >= 0:
+            acc += w[b] * (tree.rest[n, 2] - tree.rest[tree.branch_base[b], 2])
+            b = int(tree.branch_parent[b])
+        arm.append(acc)
+    k_arm = max(float(np.mean(arm)), 1e-9)
+    sign = 1.0 if rng.random() < 0.5 else -1.0
+    axis = _unit(np.array([rng.uniform(-0.15, 0.15), sign, 0.0]))
+    height = (tree.rest[:, 2] + tree.radius).max()    # the tree's height incl. leaves, at rest
+    if leaves is not None and len(leaves.rest):
+        height = max(height, float((leaves.rest[:, 2] - leaves.shape[..., 1].min(axis=1)).max()))
+    return dict(theta=prof * height / k_arm / abs(axis[1]), weight=w, axis=axis, lean=prof,
+                onset=np.array(onset), rise=np.array(rise), peak=np.array(peak))
+
+
+def _palm_sway(cfg: SynthConfig, tree: Tree, rng: np.random.Generator, t: np.ndarray):
+    """Rotation vectors (B, F, 3) and dominant frequency (B,) Hz of a palm: the trunk bends as one
+    (every segment the same slow wave, 0.2-0.35 Hz); every frond flaps about the horizontal axis
+    across it (some side to side too) at its own 0.5-1.1 Hz, a wave that travels out along the
+    chain and grows toward the tip."""
+    nb = len(tree.branch_parent)
+    omega = np.zeros((nb, len(t), 3))
+    dominant = np.zeros(nb)
+    ft = rng.uniform(0.2, 0.35) * cfg.freq_scale
+    at = 0.006 * cfg.sway_scale
+    psi = np.pi / 2 + rng.normal(0, 0.3)
+    ax_t = np.array([math.cos(psi), math.sin(psi), 0.0])
+    wave_t = at * (np.sin(2 * np.pi * ft * t + rng.uniform(0, 6.3))
+                   + 0.4 * np.sin(2 * np.pi * 1.7 * ft * t + rng.uniform(0, 6.3)))
+    for b in tree.trunk_branches:
+        omega[b] = wave_t[:, None] * ax_t
+        dominant[b] = ft
+    for chain in tree.frond_branches:
+        d0 = tree.rest[tree.branch_nodes[chain[0]][-1]] - tree.rest[tree.branch_base[chain[0]]]
+        h = np.array([d0[0], d0[1], 0.0])
+        h = _unit(h) if np.linalg.norm(h) > 1e-6 else np.array([1.0, 0.0, 0.0])
+        flap = np.cross(_UP, h)
+        ax = _unit(flap + rng.uniform(-0.5, 0.5) * _UP)
+        f = rng.uniform(0.5, 1.1) * cfg.freq_scale
+        a = rng.uniform(0.02, 0.035) * cfg.sway_scale
+        ph = rng.uniform(0, 2 * np.pi)
+        ph2 = rng.uniform(0, 2 * np.pi)
+        n_s = len(chain)
+        for k, b in enumerate(chain):
+            ak = a * (0.6 + 0.8 * k / n_s)
+            wave = ak * (np.sin(2 * np.pi * f * t + ph - 0.35 * k)
+                         + 0.3 * np.sin(2 * np.pi * 2.1 * f * t + ph2 - 0.5 * k))
+            omega[b] = wave[:, None] * ax
+            dominant[b] = f
+    return omega, dominant
+
+
 def _camera_offsets(cfg: SynthConfig, rng: np.random.Generator) -> np.ndarray:
     """Image-space camera translation per frame (F, 2) px, zero at frame 0."""
     nf = cfg.frames
@@ -619,13 +1038,21 @@ def _camera_offsets(cfg: SynthConfig, rng: np.random.Generator) -> np.ndarray:
     return off - off[:1]
 
 
-def simulate(cfg: SynthConfig, tree: Tree) -> Motion:
-    """Forward kinematics of the swaying tree for all frames."""
+def simulate(cfg: SynthConfig, tree: Tree, leaves: Leaves | None = None) -> Motion:
+    """Forward kinematics of the swaying tree for all frames (``leaves``: for the tree's height
+    that the strong gusts' lean is a share of)."""
     rng = _rng(cfg, _S_MOTION)
     nf = cfg.frames
-    t = np.arange(nf) / cfg.fps
-    omega, dominant = _branch_sway(cfg, tree, rng, t)
+    t = frame_times(cfg)
+    if cfg.kind == "palm":
+        omega, dominant = _palm_sway(cfg, tree, rng, t)
+    else:
+        omega, dominant = _branch_sway(cfg, tree, rng, t)
     gust = _rodrigues(_gust(cfg, rng, t)) if cfg.gust_rad > 0 else None
+    swing = None
+    if cfg.thin_swing_deg[1] > 0 and cfg.kind != "palm":
+        swing = _thin_swing(cfg, tree, t, omega, dominant)
+    lean = _lean(cfg, tree, t, leaves) if cfg.gust_lean[1] > 0 else None
     nb = len(tree.branch_parent)
     A = np.empty((nb, nf, 3, 3))
     T = np.empty((nb, nf, 3))
@@ -636,12 +1063,16 @@ def simulate(cfg: SynthConfig, tree: Tree) -> Motion:
         par = tree.branch_parent[b]
         if par == 0 and gust is not None:
             R = gust @ R
+        if lean is not None and lean["weight"][b] > 0:
+            R = _rodrigues((lean["theta"] * lean["weight"][b])[:, None] * lean["axis"]) @ R
         Ap, tp = (eye, zero) if par < 0 else (A[par], T[par])
         p = tree.rest[tree.branch_base[b]]
         A[b] = Ap @ R
         T[b] = np.einsum("fij,fj->fi", Ap, p - R @ p) + tp
     return Motion(A=A, t=T, branch_freq=dominant,
-                  camera_offset=_camera_offsets(cfg, _rng(cfg, _S_CAMERA)))
+                  camera_offset=_camera_offsets(cfg, _rng(cfg, _S_CAMERA)), swing_deg=swing,
+                  lean=None if lean is None else lean["lean"],
+                  gusts=None if lean is None else {k: lean[k] for k in ("onset", "rise", "peak")})
 
 
 def node_positions(tree: Tree, motion: Motion) -> np.ndarray:
@@ -873,6 +1304,212 @@ def occluder_boxes(cfg: SynthConfig, occ: Occluder | None, camera_offset: np.nda
     return boxes
 
 
+@dataclass
+class Light:
+    """Lighting that changes over the clip: gain (F,) global multiplier; shadow (Hf, Wf) float32
+    darkness 0..1 of the cloud-shadow field (None without shadows), its velocity (2,) px/s across
+    the frame, depth (darkening at darkness 1) and the crop's top-left at t = 0 (2,) px."""
+
+    gain: np.ndarray
+    shadow: np.ndarray | None
+    velocity: np.ndarray
+    depth: float
+    origin: np.ndarray
+
+
+def build_light(cfg: SynthConfig, times: np.ndarray) -> Light | None:
+    """Flicker (``flicker``: gain 1 +- flicker, 65 % of its std a slow part below 0.5 Hz, 35 % a
+    fast part at 2.5-8 Hz, scaled to span exactly [1 - flicker, 1 + flicker]) and drifting cloud
+    shadows (``cloud_shadow``: soft blobs ~1/3 of the frame height, 12-25 px/s @360)."""
+    if cfg.flicker <= 0 and cfg.cloud_shadow <= 0:
+        return None
+    rng = _rng(cfg, _S_LIGHT)
+    total = float(times[-1]) if len(times) else 0.0
+    gain = np.ones(len(times))
+    if cfg.flicker > 0 and len(times) > 1:
+        knots = rng.standard_normal(int(total / 1.5) + 3)
+        slow = (0.6 * np.sin(2 * np.pi * rng.uniform(0.1, 0.3) * times + rng.uniform(0, 6.3))
+                + 0.4 * np.interp(times, np.arange(len(knots)) * 1.5, knots))
+        fast = sum(rng.uniform(0.5, 1.0) * np.sin(2 * np.pi * rng.uniform(2.5, 8.0) * times + rng.uniform(0, 6.3))
+                   for _ in range(3))
+        c = (0.65 * (slow - slow.mean()) / max(slow.std(), 1e-9)
+             + 0.35 * (fast - fast.mean()) / max(fast.std(), 1e-9))
+        gain = 1.0 + cfg.flicker * (2.0 * (c - c.min()) / max(np.ptp(c), 1e-9) - 1.0)
+    shadow, vel, origin = None, np.zeros(2), np.zeros(2)
+    if cfg.cloud_shadow > 0:
+        s = _scale(cfg)
+        vel = np.array([(1 if rng.random() < 0.5 else -1) * rng.uniform(12.0, 25.0), rng.uniform(-4.0, 4.0)]) * s
+        pad = int(math.ceil(0.1 * cfg.height))
+        travel = np.abs(vel) * total
+        wf = int(cfg.width + travel[0] + 2 * pad) + 2
+        hf = int(cfg.height + travel[1] + 2 * pad) + 2
+        blob = cfg.height / 3.0
+        field = _noise_field(rng, hf, wf, (max(2, int(round(hf / blob))), max(2, int(round(wf / blob)))))
+        shadow = _smoothstep((field - 0.45) / 0.25).astype(np.float32)
+        origin = pad + np.maximum(vel, 0.0) * total
+    return Light(gain=gain, shadow=shadow, velocity=vel, depth=float(cfg.cloud_shadow), origin=origin)
+
+
+def light_multiplier(scene: Scene, f: int) -> np.ndarray:
+    """(H, W) float32 factor frame f's colours are multiplied by (gain x cloud shadows); 1 without light."""
+    cfg, lt = scene.cfg, scene.light
+    if lt is None:
+        return np.ones((cfg.height, cfg.width), np.float32)
+    m = np.full((cfg.height, cfg.width), np.float32(lt.gain[f]), np.float32)
+    if lt.shadow is not None:
+        x0, y0 = lt.origin - lt.velocity * scene.times[f]
+        crop = cv2.getRectSubPix(lt.shadow, (cfg.width, cfg.height),
+                                 (float(x0 + (cfg.width - 1) / 2.0), float(y0 + (cfg.height - 1) / 2.0)))
+        m *= np.float32(1.0) - np.float32(lt.depth) * crop
+    return m
+
+
+@dataclass
+class Foreground:
+    """A blurred branch close to the camera, hanging from ``pivot`` (2,) px above the frame and
+    swinging by ``angle`` (F,) rad. Shapes in the branch's own frame (y along the limb, px):
+    quads (Q, 4, 2) bark, ellipses (E, 5) cx, cy, ax, ay, deg of leaves; colours; blur sigma px."""
+
+    pivot: np.ndarray
+    angle: np.ndarray
+    quads: np.ndarray
+    quad_color: list
+    ellipses: np.ndarray
+    ellipse_color: list
+    sigma: float
+
+
+def build_foreground(cfg: SynthConfig, tree: Tree, times: np.ndarray) -> Foreground | None:
+    """A branch in front of the crown: hangs from 25-45 % of the frame height above the frame,
+    reaches 60-85 % down the crown, swings at 0.15-0.28 Hz between 50-65 % of the crown's width
+    left and right of its centre (at the crown's middle height), starting at one side."""
+    if not cfg.foreground:
+        return None
+    rng = _rng(cfg, _S_FOREGROUND)
+    h = cfg.height
+    cx, gv = cfg.width / 2.0, cfg.ground_frac * cfg.height
+    crown = tree.rest[tree.depth_level >= 1] if (tree.depth_level >= 1).any() else tree.rest
+    u, v = cx + crown[:, 0], gv - crown[:, 2]
+    u0, u1, v0, v1 = u.min(), u.max(), v.min(), v.max()
+    wc = u1 - u0
+    pivot = np.array([0.5 * (u0 + u1) + rng.uniform(-0.1, 0.1) * wc, -rng.uniform(0.25, 0.45) * h])
+    v_tip = v0 + rng.uniform(0.6, 0.85) * (v1 - v0)
+    length = v_tip - pivot[1]
+    v_mid = 0.5 * (v0 + v1)
+    amp = math.atan(rng.uniform(0.5, 0.65) * wc / (v_mid - pivot[1]))
+    freq = rng.uniform(0.15, 0.28)
+    side = 1.0 if rng.random() < 0.5 else -1.0
+    angle = -side * amp * np.cos(2 * np.pi * freq * times) + 0.08 * amp * np.sin(2 * np.pi * 0.9 * times
+                                                                                 + rng.uniform(0, 6.3))
+    w0 = 0.045 * h * rng.uniform(0.8, 1.2)
+    sk = np.linspace(0.0, 1.0, 9)
+    curv = rng.uniform(-1.0, 1.0) * 0.06 * length
+    pts = np.stack([curv * np.sin(np.pi * sk), sk * length], 1)
+    hw = 0.5 * w0 * (1.0 - 0.55 * sk)
+    quads, ells = [], []
+
+    def strip(p, half):
+        d = _unit(np.diff(p, axis=0))
+        nrm = np.stack([-d[:, 1], d[:, 0]], 1)
+        for i in range(len(p) - 1):
+            quads.append([p[i] + nrm[i] * half[i], p[i + 1] + nrm[i] * half[i + 1],
+                          p[i + 1] - nrm[i] * half[i + 1], p[i] - nrm[i] * half[i]])
+
+    strip(pts, hw)
+    for _ in range(int(rng.integers(4, 7))):
+        st = rng.uniform(0.4, 0.95)
+        a0 = np.interp(st, sk, pts[:, 0]), st * length
+        ang = np.radians(rng.uniform(25, 60)) * (1 if rng.random() < 0.5 else -1)
+        tl = rng.uniform(0.1, 0.22) * length
+        tip = np.array([a0[0] + math.sin(ang) * tl, a0[1] + math.cos(ang) * tl])
+        tw = 0.3 * float(np.interp(st, sk, hw))
+        strip(np.array([a0, 0.5 * (np.array(a0) + tip), tip]), np.array([tw, 0.8 * tw, 0.5 * tw]))
+        for _ in range(int(rng.integers(2, 4))):
+            c = tip + rng.normal(0, 0.02 * h, 2)
+            ells.append([c[0], c[1], rng.uniform(0.025, 0.05) * h, rng.uniform(0.015, 0.03) * h,
+                         rng.uniform(0, 180)])
+    for st in rng.uniform(0.55, 1.0, int(rng.integers(3, 6))):
+        c = np.array([np.interp(st, sk, pts[:, 0]), st * length]) + rng.normal(0, 0.02 * h, 2)
+        ells.append([c[0], c[1], rng.uniform(0.025, 0.05) * h, rng.uniform(0.015, 0.03) * h, rng.uniform(0, 180)])
+    bark = np.array([38.0, 46.0, 54.0])
+    leaf = np.array([34.0, 74.0, 46.0])
+    return Foreground(pivot=pivot, angle=angle, quads=np.array(quads, float),
+                      quad_color=[tuple(float(x) for x in bark * rng.uniform(0.85, 1.15)) for _ in quads],
+                      ellipses=np.array(ells, float),
+                      ellipse_color=[tuple(float(x) for x in np.clip(leaf * rng.uniform(0.8, 1.3), 0, 255))
+                                     for _ in ells],
+                      sigma=float(rng.uniform(0.010, 0.016) * h))
+
+
+def _foreground_layer(cfg: SynthConfig, fg: Foreground, f: int):
+    """Blurred foreground of frame f in frame-1 coordinates: (premultiplied colour (h, w, 3),
+    alpha (h, w)) float32 of a box, and the box's (x0, y0); None when it is outside the frame."""
+    c, s_ = math.cos(fg.angle[f]), math.sin(fg.angle[f])
+    R = np.array([[c, -s_], [s_, c]])
+    quads = fg.quads @ R.T + fg.pivot
+    ell = fg.ellipses.copy()
+    ell[:, :2] = ell[:, :2] @ R.T + fg.pivot
+    pad = 3.0 * fg.sigma + 2.0
+    pts = np.concatenate([quads.reshape(-1, 2), ell[:, :2] - ell[:, 2:3], ell[:, :2] + ell[:, 2:3]])
+    x0 = int(max(math.floor(pts[:, 0].min() - pad), 0))
+    y0 = int(max(math.floor(pts[:, 1].min() - pad), 0))
+    x1 = int(min(math.ceil(pts[:, 0].max() + pad), cfg.width))
+    y1 = int(min(math.ceil(pts[:, 1].max() + pad), cfg.height))
+    if x1 <= x0 or y1 <= y0:
+        return None
+    col = np.zeros((y1 - y0, x1 - x0, 3), np.uint8)
+    alpha = np.zeros((y1 - y0, x1 - x0), np.uint8)
+    off = np.array([x0, y0], float)
+    for q, qc in zip(quads, fg.quad_color):
+        qi = np.rint((q - off) * _SUB).astype(np.int32)
+        cv2.fillConvexPoly(col, qi, qc, cv2.LINE_AA, _SHIFT)
+        cv2.fillConvexPoly(alpha, qi, 255, cv2.LINE_AA, _SHIFT)
+    for e, ec in zip(ell, fg.ellipse_color):
+        cen = (int(round((e[0] - x0) * _SUB)), int(round((e[1] - y0) * _SUB)))
+        axes = (int(round(e[2] * _SUB)), int(round(e[3] * _SUB)))
+        ang = float(e[4] + math.degrees(fg.angle[f]))
+        cv2.ellipse(col, cen, axes, ang, 0, 360, ec, -1, cv2.LINE_AA, _SHIFT)
+        cv2.ellipse(alpha, cen, axes, ang, 0, 360, 255, -1, cv2.LINE_AA, _SHIFT)
+    a = alpha.astype(np.float32) / 255.0
+    pm = cv2.GaussianBlur(col.astype(np.float32) * a[..., None], (0, 0), fg.sigma)
+    a = cv2.GaussianBlur(a, (0, 0), fg.sigma)
+    return pm, a, (x0, y0)
+
+
+#: share of a pixel the foreground branch must cover to be in its mask and its label (at 3 %, a pixel
+#: outside the mask differs by less than ~6 levels from the frame without the branch)
+FOREGROUND_ALPHA = 0.03
+
+
+def foreground_mask(scene: Scene, f: int, threshold: float = FOREGROUND_ALPHA) -> np.ndarray:
+    """(H, W) bool where the foreground branch covers at least ``threshold`` of frame f's pixel,
+    in image coordinates (with the camera's offset); all False without a foreground."""
+    cfg = scene.cfg
+    m = np.zeros((cfg.height, cfg.width), bool)
+    if scene.foreground is None:
+        return m
+    layer = _foreground_layer(cfg, scene.foreground, f)
+    if layer is None:
+        return m
+    _, a, (x0, y0) = layer
+    m[y0:y0 + a.shape[0], x0:x0 + a.shape[1]] = a >= threshold
+    dx, dy = scene.motion.camera_offset[f]
+    if dx != 0 or dy != 0:
+        M = np.array([[1.0, 0.0, dx], [0.0, 1.0, dy]])
+        m = cv2.warpAffine(m.astype(np.uint8), M, (cfg.width, cfg.height), flags=cv2.INTER_NEAREST) > 0
+    return m
+
+
+def _paste_foreground(img: np.ndarray, scene: Scene, f: int) -> None:
+    layer = _foreground_layer(scene.cfg, scene.foreground, f)
+    if layer is None:
+        return
+    pm, a, (x0, y0) = layer
+    region = img[y0:y0 + a.shape[0], x0:x0 + a.shape[1]]
+    out = region.astype(np.float32) * (1.0 - a[..., None]) + pm
+    region[:] = np.clip(out + 0.5, 0, 255).astype(np.uint8)
+
+
 # ----------------------------------------------------------------------------------------------
 # scene = everything needed to render a frame
 # ----------------------------------------------------------------------------------------------
@@ -898,6 +1535,9 @@ class Scene:
     seg_light: list
     marks: dict                 # bark marks: seg, s, w, half_len, half_wid, along (M,) + color
     layers: list                # far to near: dicts of index arrays
+    times: np.ndarray | None = None            # (F,) s of every frame (frame_times)
+    light: Light | None = None                 # flicker and cloud shadows
+    foreground: Foreground | None = None       # blurred branch in front of the tree
 
 
 def project(cfg_or_scene, xyz: np.ndarray) -> np.ndarray:
@@ -928,6 +1568,8 @@ def _bark_colors(cfg: SynthConfig, tree: Tree, child: np.ndarray, rng: np.random
     base = (root_c * (1 - m[:, None]) + thin_c * m[:, None]) * tint[:, None]
     if cfg.kind == "conifer":
         base *= 0.82                                    # dark spruce bark vs dark needles
+    if tree.part is not None:                           # a palm's fronds: green-yellow rachis
+        base[tree.part[child] == 1] = np.array([70.0, 132.0, 118.0])
     dark = np.clip(base * 0.66, 0, 255)
     light = np.clip(base * 1.22, 0, 255)
     to_list = lambda a: [tuple(float(v) for v in c) for c in a]          # noqa: E731
@@ -986,8 +1628,9 @@ def build_scene(cfg: SynthConfig) -> Scene:
     _validate(cfg)
     tree = build_tree(cfg)
     leaves = build_leaves(cfg, tree)
-    motion = simulate(cfg, tree)
+    motion = simulate(cfg, tree, leaves)
     nodes3d = node_positions(tree, motion)
+    times = frame_times(cfg)
     par, child, r0, r1 = _segments(tree)
     rng = _rng(cfg, _S_BARK)
     base, dark, light = _bark_colors(cfg, tree, child, rng)
@@ -997,7 +1640,8 @@ def build_scene(cfg: SynthConfig) -> Scene:
                  cx=cfg.width / 2.0, ground_v=cfg.ground_frac * cfg.height,
                  seg_parent=par, seg_child=child, seg_r0=r0, seg_r1=r1, seg_color=base,
                  seg_dark=dark, seg_light=light, marks=marks,
-                 layers=_draw_plan(tree, leaves, par, child, r0, r1, marks))
+                 layers=_draw_plan(tree, leaves, par, child, r0, r1, marks), times=times,
+                 light=build_light(cfg, times), foreground=build_foreground(cfg, tree, times))
 
 
 def _validate(cfg: SynthConfig) -> None:
@@ -1005,8 +1649,12 @@ def _validate(cfg: SynthConfig) -> None:
         raise ValueError("need width, height >= 64, frames >= 1, fps > 0")
     if cfg.bark not in ("brown", "grey"):
         raise ValueError("bark must be 'brown' or 'grey'")
-    if cfg.kind not in ("deciduous", "conifer"):
-        raise ValueError("kind must be 'deciduous' or 'conifer'")
+    if cfg.kind not in ("deciduous", "conifer", "palm"):
+        raise ValueError("kind must be 'deciduous', 'conifer' or 'palm'")
+    if cfg.encoder not in ("mp4v", "h264"):
+        raise ValueError("encoder must be 'mp4v' or 'h264'")
+    if cfg.vfr_header_fps > 0 and cfg.encoder != "h264":
+        raise ValueError("a variable frame rate (vfr_header_fps > 0) is written by ffmpeg: set encoder='h264'")
 
 
 # ----------------------------------------------------------------------------------------------
@@ -1018,9 +1666,66 @@ def leaf_centres(scene: Scene, f: int) -> np.ndarray:
     A = scene.motion.A[:, f][lv.branch]
     t = scene.motion.t[:, f][lv.branch]
     world = np.einsum("lij,lj->li", A, lv.rest) + t
-    tsec = f / scene.cfg.fps
+    tsec = scene.times[f] if scene.times is not None else f / scene.cfg.fps
     flutter = lv.flutter_amp * np.sin(2 * np.pi * lv.flutter_freq * tsec + lv.flutter_phase)
     return project(scene, world) + flutter
+
+
+def _turn_angle(scene: Scene, f: int) -> np.ndarray:
+    """Turning angle of every leaf card at frame f (Lv,) rad (turning leaves only)."""
+    lv = scene.leaves
+    return lv.turn_amp * np.sin(2 * np.pi * lv.turn_freq * scene.times[f] + lv.turn_phase)
+
+
+def leaf_polygons(scene: Scene, f: int) -> np.ndarray:
+    """Leaf polygons of frame f (Lv, 6, 2) frame-1 px. A palm's leaflet turns and foreshortens with
+    its frond segment; a turning card (``leaf_turn_deg``) turns in the image plane about its
+    petiole (vertex 3) by its angle and its width foreshortens by cos(tilt + angle) / cos(tilt)."""
+    lv = scene.leaves
+    if lv.turn_amp is None and lv.axis is None:
+        return leaf_centres(scene, f)[:, None, :] + lv.shape
+    shape = lv.shape
+    if lv.axis is not None:
+        A = scene.motion.A[:, f][lv.branch]
+        d = np.einsum("lij,lj->li", A, lv.axis)
+        p_now = np.stack([d[:, 0], -d[:, 2]], 1)
+        p_rest = np.stack([lv.axis[:, 0], -lv.axis[:, 2]], 1)
+        ang = np.arctan2(p_now[:, 1], p_now[:, 0]) - np.arctan2(p_rest[:, 1], p_rest[:, 0])
+        ratio = np.clip(np.maximum(np.linalg.norm(p_now, axis=1), 0.15)
+                        / np.maximum(np.linalg.norm(p_rest, axis=1), 0.15), 0.25, 4.0)
+        u = _unit(shape[:, 0] - shape[:, 3])
+        v = np.stack([-u[:, 1], u[:, 0]], 1)
+        a_c = np.einsum("lkc,lc->lk", shape, u) * ratio[:, None]
+        b_c = np.einsum("lkc,lc->lk", shape, v)
+        shape = _rotate2d(a_c[..., None] * u[:, None] + b_c[..., None] * v[:, None], ang)
+    if lv.turn_amp is not None:
+        alpha = _turn_angle(scene, f)
+        pivot = shape[:, 3:4]
+        rel = shape - pivot
+        u = _unit(shape[:, 0] - shape[:, 3])
+        v = np.stack([-u[:, 1], u[:, 0]], 1)
+        fs = np.cos(lv.tilt + alpha) / np.cos(lv.tilt)
+        a_c = np.einsum("lkc,lc->lk", rel, u)
+        b_c = np.einsum("lkc,lc->lk", rel, v) * fs[:, None]
+        shape = pivot + _rotate2d(a_c[..., None] * u[:, None] + b_c[..., None] * v[:, None], alpha)
+    return leaf_centres(scene, f)[:, None, :] + shape
+
+
+def _rotate2d(p: np.ndarray, ang: np.ndarray) -> np.ndarray:
+    """Rotate (L, K, 2) points by (L,) rad (image x right, y down: positive turns x toward y)."""
+    c, s_ = np.cos(ang)[:, None], np.sin(ang)[:, None]
+    return np.stack([c * p[..., 0] - s_ * p[..., 1], s_ * p[..., 0] + c * p[..., 1]], -1)
+
+
+def leaf_colors(scene: Scene, f: int) -> list:
+    """BGR colour of every leaf at frame f: a turning card gets brighter or darker as it turns
+    toward or away from the light (x (1 + 0.8 (sin(tilt + angle) - sin(tilt))))."""
+    lv = scene.leaves
+    if lv.turn_amp is None:
+        return lv.color
+    g = 1.0 + 0.8 * (np.sin(lv.tilt + _turn_angle(scene, f)) - np.sin(lv.tilt))
+    col = np.clip(np.asarray(lv.color) * g[:, None], 0, 255)
+    return [tuple(float(v) for v in c) for c in col]
 
 
 def _frame_geometry(scene: Scene, f: int) -> dict:
@@ -1045,14 +1750,14 @@ def _frame_geometry(scene: Scene, f: int) -> dict:
     e1 = np.where(mk["along"][:, None], d[ms], n[ms]) * mk["half_len"][:, None]
     e2 = np.where(mk["along"][:, None], n[ms], d[ms]) * mk["half_wid"][:, None]
     marks = np.stack([c + e1 + e2, c + e1 - e2, c - e1 - e2, c - e1 + e2], 1)
-    leaves = leaf_centres(scene, f)[:, None, :] + scene.leaves.shape
+    leaves = leaf_polygons(scene, f)
 
     def fix(a):
         return np.rint(a * _SUB).astype(np.int32)
 
     return dict(P=P, Pi=fix(P).tolist(), quad=fix(band(1.0, -1.0)), dark=fix(band(0.3, 1.0)),
                 light=fix(band(-0.75, -0.3)), marks=fix(marks), leaves=fix(leaves),
-                jr=np.rint(scene.tree.radius * _SUB).astype(int).tolist())
+                jr=np.rint(scene.tree.radius * _SUB).astype(int).tolist(), leaf_col=leaf_colors(scene, f))
 
 
 def _draw_tree(img: np.ndarray, scene: Scene, geo: dict, label: bool) -> None:
@@ -1062,7 +1767,7 @@ def _draw_tree(img: np.ndarray, scene: Scene, geo: dict, label: bool) -> None:
     Pi, jr, quad, leaves = geo["Pi"], geo["jr"], geo["quad"], geo["leaves"]
     par, child = scene.seg_parent, scene.seg_child
     seg_col = scene.seg_color
-    leaf_col = scene.leaves.color
+    leaf_col = geo["leaf_col"]
     bc, lc = (LABEL_BRANCH,), (LABEL_LEAF,)
     for layer in scene.layers:
         for i in layer["thin"]:
@@ -1090,6 +1795,8 @@ def render_clean(scene: Scene, f: int) -> np.ndarray:
     img = scene.background.copy()
     _draw_tree(img, scene, _frame_geometry(scene, f), label=False)
     _paste_occluder(img, scene.occluder, f)
+    if scene.foreground is not None:
+        _paste_foreground(img, scene, f)
     return img
 
 
@@ -1097,6 +1804,9 @@ def render_frame(scene: Scene, f: int) -> np.ndarray:
     """Final frame f (H, W, 3) uint8 BGR as written to the video (camera motion, noise, JPEG)."""
     cfg = scene.cfg
     img = render_clean(scene, f)
+    if scene.light is not None:
+        img = np.clip(img.astype(np.float32) * light_multiplier(scene, f)[..., None] + np.float32(0.5),
+                      0, 255).astype(np.uint8)
     dx, dy = scene.motion.camera_offset[f]
     if dx != 0 or dy != 0:
         M = np.array([[1.0, 0.0, dx], [0.0, 1.0, dy]])
@@ -1112,12 +1822,19 @@ def render_frame(scene: Scene, f: int) -> np.ndarray:
     return img
 
 
-def render_labels(scene: Scene, f: int) -> np.ndarray:
+def render_labels(scene: Scene, f: int, foreground: bool = True) -> np.ndarray:
     """Label image (H, W) uint8 of frame f in frame-1 coordinates: LABEL_BACKGROUND/BRANCH/LEAF/
-    OCCLUDER (depth-ordered like the colour rendering)."""
+    OCCLUDER/FOREGROUND (depth-ordered like the colour rendering; ``foreground=False``: the tree
+    and the occluder only)."""
     lab = np.zeros((scene.cfg.height, scene.cfg.width), np.uint8)
     _draw_tree(lab, scene, _frame_geometry(scene, f), label=True)
     _paste_occluder(lab, scene.occluder, f, value=LABEL_OCCLUDER)
+    if foreground and scene.foreground is not None:
+        layer = _foreground_layer(scene.cfg, scene.foreground, f)
+        if layer is not None:
+            _, a, (x0, y0) = layer
+            region = lab[y0:y0 + a.shape[0], x0:x0 + a.shape[1]]
+            region[a >= FOREGROUND_ALPHA] = LABEL_FOREGROUND
     return lab
 
 
@@ -1217,7 +1934,7 @@ def _height_px(scene: Scene) -> float:
     """Root-to-top height of the frame-1 tree incl. leaves (px)."""
     P = project(scene, scene.nodes3d[0])
     top_nodes = (P[:, 1] - scene.tree.radius).min()
-    leaves = leaf_centres(scene, 0)[:, None, :] + scene.leaves.shape
+    leaves = leaf_polygons(scene, 0)
     top = min(top_nodes, leaves[..., 1].min()) if len(leaves) else top_nodes
     return float(scene.ground_v - top)
 
@@ -1234,7 +1951,7 @@ def truth_arrays(scene: Scene, visible_frac: np.ndarray | None = None) -> dict:
     leaf_pos = np.stack([np.bincount(scene.leaves.cluster, lc[:, k], ncl) / cnt for k in (0, 1)], 1)
     if visible_frac is None:
         visible_frac = np.full(len(scene.tree.rest), np.nan, np.float32)
-    return {
+    out = {
         "parents": scene.tree.parents.astype(np.int32),
         "nodes3d": nodes3d,
         "nodes2d": nodes2d,
@@ -1258,13 +1975,110 @@ def truth_arrays(scene: Scene, visible_frac: np.ndarray | None = None) -> dict:
         "ground_v": np.float32(scene.ground_v),
         "seed": np.int64(cfg.seed),
     }
+    out.update(_wind_truth(scene))
+    return out
+
+
+def _wind_truth(scene: Scene) -> dict:
+    """Truth of the wind and light options (only the keys of the options that are on, and times)."""
+    cfg, lv, mo = scene.cfg, scene.leaves, scene.motion
+    times = scene.times
+    out: dict = {"times": times.astype(np.float64)}
+    if cfg.vfr_header_fps > 0:
+        out["fps"] = np.float64((len(times) - 1) / times[-1]) if len(times) > 1 else np.float64(cfg.fps)
+        out["header_fps"] = np.float64(cfg.vfr_header_fps)
+    if lv.turn_amp is not None:
+        out["leaf_turn_deg"] = np.degrees(lv.turn_amp).astype(np.float32)
+        out["leaf_turn_hz"] = lv.turn_freq.astype(np.float32)
+    if mo.swing_deg is not None:
+        out["swing_deg"] = mo.swing_deg.astype(np.float32)
+    if mo.lean is not None:
+        out["lean"] = mo.lean.astype(np.float32)
+        out["gust_onset"] = mo.gusts["onset"].astype(np.float32)
+        out["gust_rise"] = mo.gusts["rise"].astype(np.float32)
+        out["gust_lean"] = mo.gusts["peak"].astype(np.float32)
+    if scene.light is not None:
+        out["light_gain"] = scene.light.gain.astype(np.float32)
+        if scene.light.shadow is not None:
+            out["shadow_velocity"] = scene.light.velocity.astype(np.float32)
+            out["shadow_depth"] = np.float32(scene.light.depth)
+    if scene.foreground is not None:
+        out["foreground_mask"] = np.stack([foreground_mask(scene, f) for f in range(cfg.frames)])
+    if scene.tree.part is not None:
+        out["node_part"] = scene.tree.part.astype(np.int8)
+        out["frond_id"] = scene.tree.frond.astype(np.int32)
+        out["frond_count"] = np.int32(len(scene.tree.frond_branches))
+    return out
+
+
+def _ffmpeg() -> str:
+    exe = shutil.which("ffmpeg")
+    if exe is None:
+        raise RuntimeError("ffmpeg is not installed; it writes the H.264 and variable-frame-rate samples "
+                           "(Debian: apt-get install -y ffmpeg)")
+    return exe
+
+
+_X264 = ["-c:v", "libx264", "-preset", "veryfast", "-crf", "18", "-pix_fmt", "yuv420p"]
+
+
+def _write_h264(scene: Scene, path: Path, progress: Callable[[int, int], None] | None) -> None:
+    """Frames piped as raw BGR into the ffmpeg CLI, H.264 (libx264, yuv420p) in an MP4 at cfg.fps."""
+    cfg = scene.cfg
+    cmd = [_ffmpeg(), "-v", "error", "-y", "-f", "rawvideo", "-pix_fmt", "bgr24", "-s", f"{cfg.width}x{cfg.height}",
+           "-framerate", repr(float(cfg.fps)), "-i", "-", *_X264, "-movflags", "+faststart", str(path)]
+    with tempfile.TemporaryFile() as err:
+        proc = subprocess.Popen(cmd, stdin=subprocess.PIPE, stderr=err)
+        assert proc.stdin is not None
+        try:
+            for f in range(cfg.frames):
+                proc.stdin.write(render_frame(scene, f).tobytes())
+                if progress is not None:
+                    progress(f + 1, cfg.frames)
+        except BrokenPipeError:
+            pass
+        finally:
+            proc.stdin.close()
+            rc = proc.wait()
+        if rc != 0:
+            err.seek(0)
+            raise RuntimeError(f"ffmpeg could not write {path} (exit {rc}): {err.read().decode(errors='replace')[-400:]}")
+
+
+def _write_vfr(scene: Scene, path: Path, progress: Callable[[int, int], None] | None) -> None:
+    """Frames at their own times (scene.times, whole ms) into an MKV, H.264, whose header declares
+    ``vfr_header_fps``: PNG frames in a temporary folder, an ffconcat list with each frame's
+    duration, ffmpeg with pass-through timestamps and a 1 ms time base."""
+    cfg = scene.cfg
+    ms = np.rint(scene.times * 1000.0).astype(np.int64)
+    tmp = tempfile.mkdtemp(prefix=".frames_", dir=path.parent)
+    try:
+        lines = ["ffconcat version 1.0"]
+        for f in range(cfg.frames):
+            name = f"{f:06d}.png"
+            cv2.imwrite(os.path.join(tmp, name), render_frame(scene, f))
+            dur = ms[f + 1] - ms[f] if f + 1 < cfg.frames else max(int(round(1000.0 / cfg.fps)), 1)
+            lines += [f"file {name}", "option framerate 1000", f"duration {dur / 1000.0:.3f}"]
+            if progress is not None:
+                progress(f + 1, cfg.frames)
+        listing = os.path.join(tmp, "frames.ffconcat")
+        Path(listing).write_text("\n".join(lines) + "\n")
+        cmd = [_ffmpeg(), "-v", "error", "-y", "-f", "concat", "-safe", "0", "-i", listing, "-vsync", "passthrough",
+               "-enc_time_base", "1:1000", "-r", repr(float(cfg.vfr_header_fps)), *_X264, str(path)]
+        done = subprocess.run(cmd, capture_output=True)
+        if done.returncode != 0:
+            raise RuntimeError(f"ffmpeg could not write {path} (exit {done.returncode}): "
+                               f"{done.stderr.decode(errors='replace')[-400:]}")
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
 
 
 def generate(cfg: SynthConfig, out_dir: str | os.PathLike,
              progress: Callable[[int, int], None] | None = None) -> dict:
     """Render ``cfg`` into ``out_dir``; returns {"video", "outline", "mask", "truth"} paths (str).
 
-    Files: video.mp4 ('mp4v', cfg.fps, width x height, cfg.frames frames); outline.json
+    Files: video.mp4 ('mp4v', or H.264 with ``encoder="h264"``; cfg.fps, width x height, cfg.frames
+    frames; video.mkv for a variable frame rate, see ``vfr_header_fps``); outline.json
     {"polygon": [[x, y], ...]} frame-1 px; mask.png uint8 0/255 filled polygon (H, W);
     truth.npz (np.savez_compressed, no object arrays) with
       parents (N,) int32 (-1 root), nodes3d (F, N, 3) float32 world px (x right, y depth, z up),
@@ -1274,26 +2088,34 @@ def generate(cfg: SynthConfig, out_dir: str | os.PathLike,
       height_px float32, visible_frac (N,) float32 (share of sampled frames whose node pixel
       shows branch), occluder_boxes (F, 4) float32 image px (-1 when none), leaf_pos2d (L, 2)
       float32 frame-1 px of leaf cluster centres, leaf_dark (L,) bool, variant / bark 0-d str,
-      width, height int32, cx, ground_v float32 (u = cx + x, v = ground_v - z), seed int64.
+      width, height int32, cx, ground_v float32 (u = cx + x, v = ground_v - z), seed int64,
+      times (F,) float64 s; and the keys of the wind options that are on (sample_videos/README.md).
     ``progress(done_frames, total_frames)`` is called after every written frame.
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     scene = build_scene(cfg)
-    paths = {"video": out / "video.mp4", "outline": out / "outline.json",
-             "mask": out / "mask.png", "truth": out / "truth.npz"}
-    writer = cv2.VideoWriter(str(paths["video"]), cv2.VideoWriter_fourcc(*"mp4v"), float(cfg.fps),
-                             (cfg.width, cfg.height))
-    if not writer.isOpened():
-        raise RuntimeError(f"cv2.VideoWriter could not open {paths['video']}")
-    try:
-        for f in range(cfg.frames):
-            writer.write(render_frame(scene, f))
-            if progress is not None:
-                progress(f + 1, cfg.frames)
-    finally:
-        writer.release()
+    paths = {"video": out / ("video.mkv" if cfg.vfr_header_fps > 0 else "video.mp4"),
+             "outline": out / "outline.json", "mask": out / "mask.png", "truth": out / "truth.npz"}
+    if cfg.vfr_header_fps > 0:
+        _write_vfr(scene, paths["video"], progress)
+    elif cfg.encoder == "h264":
+        _write_h264(scene, paths["video"], progress)
+    else:
+        writer = cv2.VideoWriter(str(paths["video"]), cv2.VideoWriter_fourcc(*"mp4v"), float(cfg.fps),
+                                 (cfg.width, cfg.height))
+        if not writer.isOpened():
+            raise RuntimeError(f"cv2.VideoWriter could not open {paths['video']}")
+        try:
+            for f in range(cfg.frames):
+                writer.write(render_frame(scene, f))
+                if progress is not None:
+                    progress(f + 1, cfg.frames)
+        finally:
+            writer.release()
     vis, lab0 = _visibility(scene)
+    if scene.foreground is not None:                    # the user outlines the tree, not the branch in front
+        lab0 = render_labels(scene, 0, foreground=False)
     poly = outline_polygon(cfg, (lab0 == LABEL_BRANCH) | (lab0 == LABEL_LEAF))
     paths["outline"].write_text(json.dumps({"polygon": poly.tolist()}))
     mask = np.zeros((cfg.height, cfg.width), np.uint8)
