@@ -47,8 +47,23 @@ def chamfer_coverage(skel_nodes, skel_parents, true_nodes, true_parents, height,
     return float(chamfer), coverage
 
 
-def dominant_frequency(x: np.ndarray, fps: float) -> float:
-    """Frequency (Hz) of the largest FFT peak of ``x (F,)`` (mean removed, Hann window, parabolic refinement)."""
+def irregular(times) -> bool:
+    """True when frame ``times (F,)`` s are not evenly spaced (a variable-frame-rate clip)."""
+    if times is None or len(times) < 3:
+        return False
+    d = np.diff(np.asarray(times, float))
+    return bool(np.ptp(d) > 1e-6 * max(abs(float(d.mean())), 1e-12))
+
+
+def dominant_frequency(x: np.ndarray, fps: float, times: np.ndarray | None = None) -> float:
+    """Frequency (Hz) of the largest FFT peak of ``x (F,)`` (mean removed, Hann window, parabolic refinement).
+    With irregular frame ``times (F,)`` s, ``x`` is first resampled linearly onto F even steps at the mean rate
+    (``fps`` is then not used)."""
+    if irregular(times):
+        t = np.asarray(times, float)[:len(x)]
+        grid = np.linspace(t[0], t[-1], len(t))
+        x = np.interp(grid, t, np.asarray(x, float))
+        fps = (len(t) - 1) / (t[-1] - t[0])
     x = np.asarray(x, float) - np.mean(x)
     n = len(x)
     pad = 8 * n
@@ -80,6 +95,7 @@ def score(skel_parents, skel_nodes2d, truth, frame_step: int = 4) -> Score:
     h = float(truth["height_px"])
     fps = float(truth["fps"])
     F = min(len(tn), len(skel_nodes2d))
+    times = truth["times"][:F] if "times" in truth and irregular(truth["times"]) else None
     c1, cov = chamfer_coverage(skel_nodes2d[0], skel_parents, tn[0], tpar, h)
     call = np.mean([chamfer_coverage(skel_nodes2d[t], skel_parents, tn[t], tpar, h)[0]
                     for t in range(0, F, frame_step)])
@@ -95,7 +111,7 @@ def score(skel_parents, skel_nodes2d, truth, frame_step: int = 4) -> Score:
             corrs.append(0.0)
             continue
         corrs.append(float(np.corrcoef(xs, xt)[0, 1]))
-        ferrs.append(abs(dominant_frequency(xs, fps) - dominant_frequency(xt, fps)))
+        ferrs.append(abs(dominant_frequency(xs, fps, times) - dominant_frequency(xt, fps, times)))
     return Score(c1, float(call), cov, float(np.median(corrs)) if corrs else 0.0,
                  float(np.median(ferrs)) if ferrs else 99.0, len(skel_parents))
 

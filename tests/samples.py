@@ -23,6 +23,15 @@ def generate(variant: str, folder: str, **overrides) -> str:
     return folder
 
 
+def video_path(folder: str) -> str:
+    """The video of a sample folder: video.mp4, or video.mkv for a variable-frame-rate sample."""
+    for name in ("video.mp4", "video.mkv"):
+        path = os.path.join(folder, name)
+        if os.path.exists(path):
+            return path
+    raise FileNotFoundError(f"no video.mp4 or video.mkv in {folder}")
+
+
 def load_truth(folder: str) -> dict:
     with np.load(os.path.join(folder, "truth.npz"), allow_pickle=False) as z:
         return {k: z[k] for k in z.files}
