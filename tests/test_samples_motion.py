@@ -38,18 +38,24 @@ def psnr_blurred(a: np.ndarray, b: np.ndarray, sigma: float = 1.5) -> float:
 
 # --- the first sample set is unchanged ---------------------------------------------------------
 
-#: sha256 (first 16 hex) of every truth array (sorted by key, ``times`` excluded: it is new) and of frames
-#: 0, 1 and 47 of each first-set variant at 48 frames, computed with synth_tree.py before the wind options
-#: existed (numpy 1.26, OpenCV 4.11). The truth hashes depend on numpy only; the frame hashes also on
-#: OpenCV's drawing (a different OpenCV build may draw anti-aliased edges a level apart).
-OLD_HASHES = {
-    "broad": ("91d38a3a01cd32a1", "62dfb1842009460a"),
-    "conifer": ("edef0bb5a5578633", "3cd17ea15c3568c6"),
-    "sparse": ("879ea7d9e09a06e6", "9ff02cca1246671b"),
-    "hard": ("b04a373e014e4373", "c30328561272da0f"),
-    "gentle": ("33201403ca035003", "d656a44d73824f73"),
-    "grey": ("a4c549d7782b32db", "b7746ca5661ae342"),
-    "dense": ("299d1c9ffa5b193c", "7f5690ad20b040e2"),
+#: sha256 (first 16 hex) of each first-set variant at 48 frames, computed with synth_tree.py before the
+#: wind options existed: (every truth array but ``visible_frac``, sorted by key; ``times`` is new) -- numpy
+#: only, the same with numpy 1.26, 2.2 and 2.5 -- and per OpenCV build (``visible_frac`` and frames 0, 1 and
+#: 47): its anti-aliased drawing differs by a level here and there between builds. Recorded on the venv
+#: (OpenCV 4.11), real Blender 4.3 (4.10) and bpy 5.3 (5.0).
+OLD_TRUTH = {"broad": "9714b5ece1d58138", "conifer": "512c762a04b26637", "sparse": "7ce8cdeed4e22814",
+             "hard": "1c6250370496a6b6", "gentle": "e1e6229b645af981", "grey": "01f930b6cd957f9d",
+             "dense": "3d003323a825bc1d"}
+OLD_DRAWN = {
+    "4.11.0": {"broad": "7068fd0839879cbe", "conifer": "93dbf0bbdfd399a5", "sparse": "253e16c45d5f56ec",
+               "hard": "d0146351391486ce", "gentle": "09bae369c6393d70", "grey": "8c2773455c748cf0",
+               "dense": "c222091868999764"},
+    "4.10.0": {"broad": "77f83ab1b4690ea2", "conifer": "2146ab4f14531a4e", "sparse": "f8a10647a3df9aad",
+               "hard": "a3a2518b5472fbda", "gentle": "c5b9698effab881d", "grey": "3f4730b625d48875",
+               "dense": "791ce73d8a151a19"},
+    "5.0.0": {"broad": "20281eda868a91ba", "conifer": "b396742821ff4f97", "sparse": "65d5a8b25428f86a",
+              "hard": "ee0628b57efc2e51", "gentle": "4e8fc094f10e1edb", "grey": "f31d6b3421af70c0",
+              "dense": "ffbed3b10a2d12a6"},
 }
 
 
@@ -57,32 +63,41 @@ OLD_HASHES = {
 def test_first_sample_set_is_byte_identical(variant):
     sc = st.build_scene(st.config_for(variant, frames=48))
     ta = st.truth_arrays(sc, st._visibility(sc)[0])
-    h = hashlib.sha256()
+    h, hd = hashlib.sha256(), hashlib.sha256()
     for k in sorted(ta):
-        if k == "times":
+        if k in ("times", "visible_frac"):
             continue
         h.update(k.encode())
         h.update(np.ascontiguousarray(ta[k]).tobytes())
-    hf = hashlib.sha256()
-    for f in (0, 1, 47):
-        hf.update(st.render_frame(sc, f).tobytes())
-    assert (h.hexdigest()[:16], hf.hexdigest()[:16]) == OLD_HASHES[variant]
+    assert h.hexdigest()[:16] == OLD_TRUTH[variant]
     assert set(ta) - {"times"} == set(np.load(os.path.join(COMMITTED, "broad", "truth.npz")).files)
     assert np.array_equal(ta["times"], np.arange(48) / 24.0)
+    hd.update(np.ascontiguousarray(ta["visible_frac"]).tobytes())
+    for f in (0, 1, 47):
+        hd.update(st.render_frame(sc, f).tobytes())
+    assert cv2.__version__ in OLD_DRAWN, (f"no drawn reference for OpenCV {cv2.__version__}: record one by running "
+                                          "this hash on the commit before the wind options (git log sample_videos)")
+    assert hd.hexdigest()[:16] == OLD_DRAWN[cv2.__version__][variant]
 
 
 @pytest.mark.parametrize("name", ["broad", "sparse"])
 def test_committed_samples_regenerate(name):
-    """The committed truth.npz is what the generator gives today, array for array, and the committed
-    video's first frames are today's frames (39.6-40.1 dB blurred PSNR measured, mp4v grain; frame 3 in
-    place of frame 0: 31-36 dB, another seed: 16 dB)."""
+    """The committed truth.npz is what the generator gives today, array for array (``visible_frac``, a share
+    of ~48 sampled label images, exactly with the OpenCV it was made with and within a few samples elsewhere),
+    and the committed video's first frames are today's frames (39.6-40.1 dB blurred PSNR measured, mp4v
+    grain; frame 3 in place of frame 0: 31-36 dB, another seed: 16 dB)."""
     folder = os.path.join(COMMITTED, name)
     with np.load(os.path.join(folder, "truth.npz")) as z:
         committed = {k: z[k] for k in z.files}
     sc = st.build_scene(st.config_for(name, frames=len(committed["nodes2d"])))
     ta = st.truth_arrays(sc, st._visibility(sc)[0])
     for k, a in committed.items():
-        assert a.dtype == ta[k].dtype and np.array_equal(a, ta[k]), k
+        assert a.dtype == ta[k].dtype, k
+        if k == "visible_frac" and cv2.__version__ != "4.11.0":
+            d = np.abs(a - ta[k])
+            assert d.max() <= 0.1 and d.mean() <= 0.01, (k, d.max(), d.mean())     # measured 0.06 / 0.004
+        else:
+            assert np.array_equal(a, ta[k]), k
     cap = cv2.VideoCapture(os.path.join(folder, "video.mp4"))
     frames = [cap.read()[1] for _ in range(3)]
     cap.release()
