@@ -5,6 +5,8 @@ Bars (issue "Foundation"): traced frame-1 and all-frame chamfer ≤ 2.5% of tree
 truth (median Pearson ≥ 0.85; ≥ 0.8 on the gentle variant) and their dominant sway frequency is
 within 0.1 Hz.
 """
+import os
+
 import numpy as np
 import pytest
 from conftest import ALL_VARIANTS, BAR_VARIANTS
@@ -108,10 +110,23 @@ def test_no_node_follows_the_moving_object(runs):
     assert err < 0.02 * float(truth["height_px"]), err
 
 
-def test_gentle_sway_is_reported(runs):
-    warnings = runs["gentle"]["traced"].warnings
-    assert any("barely moves" in w for w in warnings), warnings
-    assert not any("barely moves" in w for w in runs["broad"]["traced"].warnings)
+def test_barely_moves_only_on_a_still_tree(runs, tmp_path):
+    """The warning names motion below what tracking resolves: not the gentle variant (its crown
+    sways ~0.06 px a frame, 1.4 px a second — measurable), not broad, but a truly still tree (the
+    same scene with its sway, gusts and flutter at zero: only sensor noise moves)."""
+    for v in ("gentle", "broad", "sparse"):
+        assert not any("barely moves" in w for w in runs[v]["traced"].warnings), (v, runs[v]["traced"].warnings)
+    from tree_from_video.core.outline import load_outline
+    from tree_from_video.core.reconstruct.run import track_video
+    from tree_from_video.core.reconstruct.tracks import TrackParams
+    from tree_from_video.core.reconstruct.video import open_video
+
+    from samples import generate
+    folder = generate("gentle", str(tmp_path / "still"), sway_scale=0.0, gust_rad=0.0, flutter_px=0.0, frames=96)
+    info = open_video(os.path.join(folder, "video.mp4"), 1.0)
+    outline = load_outline(os.path.join(folder, "outline.json"), info.width, info.height, 1.0)
+    tracks, _ = track_video(info, outline, 0, info.frame_count, TrackParams())
+    assert any("barely moves" in w for w in tracks.warnings), tracks.warnings
 
 
 def test_fallback_without_any_bark_evidence(runs):
@@ -138,3 +153,34 @@ def test_fallback_without_any_bark_evidence(runs):
     xy = sk.nodes2d[0, chain]
     h = float(truth["height_px"])
     assert np.ptp(xy[:, 0]) < 0.05 * h and xy[0, 1] - xy[-1, 1] > 0.15 * h, xy
+
+
+def _camera_shift(tracks, size):
+    """``(F, 2)`` px: where the image centre of each frame lands in frame 1, minus the centre (the
+    estimated camera translation)."""
+    from tree_from_video.core.reconstruct.tracks import apply_affine
+    c = np.array([size[0] / 2, size[1] / 2], float)
+    return np.array([c - apply_affine(m.astype(float), c) for m in tracks.camera])
+
+
+def test_camera_motion_only_where_the_background_moves(runs, tmp_path):
+    """Tripod variants get no camera motion at all (was up to 0.1 px here, 0.6 px of drift under
+    flicker); the hand-held one (shake + drift up to 7 px, a passer-by) is recovered: 95 % of frames
+    within 0.3 px of the truth, every frame within 0.6 px."""
+    for v in ("broad", "conifer", "sparse", "gentle", "grey", "dense"):
+        tr = runs[v]["traced"].tracks
+        assert np.abs(_camera_shift(tr, tr.size)).max() <= 0.3, v
+    tr = runs["hard"]["traced"].tracks
+    err = np.linalg.norm(_camera_shift(tr, tr.size) - runs["hard"]["truth"]["camera_offset"][:tr.n_frames], axis=1)
+    assert np.percentile(err, 95) <= 0.3 and err.max() <= 0.6, (np.percentile(err, 95), err.max())
+    from tree_from_video.core.outline import load_outline
+    from tree_from_video.core.reconstruct.run import track_video
+    from tree_from_video.core.reconstruct.tracks import TrackParams
+    from tree_from_video.core.reconstruct.video import open_video
+
+    from samples import generate
+    folder = generate("flicker", str(tmp_path / "flicker"), frames=120)        # ±15 % light, cloud shadows
+    info = open_video(os.path.join(folder, "video.mp4"), 1.0)
+    outline = load_outline(os.path.join(folder, "outline.json"), info.width, info.height, 1.0)
+    tracks, _ = track_video(info, outline, 0, info.frame_count, TrackParams())
+    assert np.abs(_camera_shift(tracks, tracks.size)).max() <= 0.3

@@ -15,6 +15,10 @@ import numpy as np
 
 from ..outline import Outline
 
+#: px: a crown whose tracks' sway (75th percentile of their displacement std) is below this is
+#: below what Lucas-Kanade resolves (its noise is ~0.02-0.05 px on a still tree)
+STILL_SWAY_PX = 0.12
+
 LK_PARAMS = dict(winSize=(11, 11), maxLevel=3,
                  criteria=(cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 20, 0.02))
 
@@ -34,6 +38,9 @@ class TrackParams:
     stabilize: bool = True        # remove camera motion using features outside the outline
     max_tree_px: int = 480        # track on frames scaled so the outline's larger side is at most
                                   # this (large and 4K videos: corners and LK cost scale with it)
+    light_sigma: float = 4.0      # px (working image): LK runs on the frame minus its blur at this
+                                  # scale, rescaled to a fixed contrast, so a gain or offset change
+                                  # (flicker, a cloud shadow) is not motion; 0: the raw grey frame
 
 
 @dataclass
@@ -64,14 +71,20 @@ class Tracks:
         d = self.points - self.points[:1]
         return np.where(self.valid[..., None], d, np.nan)
 
-    def sway_px(self) -> float:
-        """Typical sway: median over tracks of the std of their displacement (pixels)."""
+    def track_sway(self) -> np.ndarray:
+        """``(P,)`` px: each track's sway, the std of its displacement over the frames it is valid
+        (NaN for tracks valid in fewer than 3 frames)."""
         d = self.displacement()
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)
             s = np.nanstd(d, axis=0)
         s = np.sqrt(np.nansum(s ** 2, axis=-1))
-        ok = self.valid.sum(0) >= 3
+        return np.where(self.valid.sum(0) >= 3, s, np.nan)
+
+    def sway_px(self) -> float:
+        """Typical sway: median over tracks of the std of their displacement (pixels)."""
+        s = self.track_sway()
+        ok = np.isfinite(s)
         return float(np.median(s[ok])) if ok.any() else 0.0
 
 
@@ -126,11 +139,35 @@ class CameraEstimator:
         self.ref = self.pts.copy()          # the same points in frame-1 coordinates
         self.current = np.array([[1.0, 0, 0], [0, 1.0, 0]])
         self.available = len(self.pts) >= 8
+        self.moved = False                  # strong evidence of camera motion seen yet
+        self.diag = float(np.hypot(h, w))
 
     def _detect(self, gray: np.ndarray) -> np.ndarray:
         pts = cv2.goodFeaturesToTrack(gray, maxCorners=400, qualityLevel=0.01, minDistance=8,
                                       mask=self.bg_mask.astype(np.uint8), blockSize=5)
         return np.zeros((0, 2), np.float32) if pts is None else pts.reshape(-1, 2).astype(np.float32)
+
+    def _strong(self, m: np.ndarray, cur: np.ndarray, ref: np.ndarray, inl: np.ndarray | None,
+                moving: bool) -> bool:
+        """Whether the background supports the estimate ``m``: most tracked background points
+        agree (RANSAC inliers ≥ half, at least 8) and they are spread over the frame (RMS distance
+        from their centre ≥ 10 % of its diagonal: not one object passing by); until the camera has
+        been seen ``moving``, the motion must also beat the identity by more than the fit's own
+        noise (median residual of identity > 2 × the model's + 0.1 px). Otherwise the estimate is
+        noise, a leaf or a passer-by: a tripod gets no camera motion."""
+        if inl is None:
+            return False
+        keep = inl.ravel().astype(bool)
+        if keep.sum() < max(8, 0.5 * len(keep)):
+            return False
+        c, r = cur[keep].astype(np.float64), ref[keep].astype(np.float64)
+        if np.sqrt(((c - c.mean(0)) ** 2).sum(1).mean()) < 0.1 * self.diag:
+            return False
+        if moving:
+            return True
+        r_id = float(np.median(np.linalg.norm(c - r, axis=1)))
+        r_m = float(np.median(np.linalg.norm(apply_affine(m, c) - r, axis=1)))
+        return r_id > 2.0 * r_m + 0.1
 
     def update(self, prev: np.ndarray, cur: np.ndarray) -> np.ndarray:
         """Estimate the ``(2, 3)`` affine mapping ``cur`` image coordinates to frame 1."""
@@ -146,8 +183,10 @@ class CameraEstimator:
         if ok.sum() >= 8:
             m, inl = cv2.estimateAffinePartial2D(new[ok], self.ref[ok], method=cv2.RANSAC,
                                                  ransacReprojThreshold=1.0, maxIters=2000, confidence=0.99)
-            if m is not None:
-                self.current = m
+            if m is not None and self._strong(m, new[ok], self.ref[ok], inl, self.moved):
+                self.current, self.moved = m, True
+            elif not self.moved:
+                self.current = np.array([[1.0, 0, 0], [0, 1.0, 0]])   # a tripod: never invent a drift
         self.pts, self.ref = new[ok], self.ref[ok]
         if len(self.pts) < 100:   # refill: new corners get frame-1 coordinates through the estimate
             fresh = self._detect(cur)
@@ -171,7 +210,8 @@ class Tracker:
         if self.s < 1.0:
             mask = cv2.resize(mask.astype(np.uint8), (gray.shape[1], gray.shape[0]),
                               interpolation=cv2.INTER_NEAREST) > 0
-        self.prev = gray
+        self.prev = self._lk_image(gray)
+        self.prev_raw = gray
         raw = detect_corners(gray, mask, self.params)
         pts = (raw / self.s).astype(np.float32)
         self.fps, self.start, self.size = fps, start, (frame0.shape[1], frame0.shape[0])
@@ -196,6 +236,18 @@ class Tracker:
             gray = cv2.resize(gray, None, fx=self.s, fy=self.s, interpolation=cv2.INTER_LINEAR)
         return gray
 
+    def _lk_image(self, gray: np.ndarray) -> np.ndarray:
+        """The image LK tracks on: ``gray`` minus its Gaussian blur (``light_sigma``), scaled so its
+        robust spread is fixed, as uint8 around 128. Local offset and gain (flicker, a drifting
+        shadow) cancel; edges and texture stay. ``light_sigma`` 0: ``gray`` itself."""
+        sig = self.params.light_sigma
+        if sig <= 0:
+            return gray
+        g = gray.astype(np.float32)
+        hp = g - cv2.GaussianBlur(g, (0, 0), sig)
+        spread = float(np.percentile(np.abs(hp), 90)) + 1e-3       # the frame's contrast
+        return np.clip(hp * (40.0 / spread) + 128.0, 0, 255).astype(np.uint8)
+
     def _neighbours(self, pts: np.ndarray) -> np.ndarray:
         k = min(self.params.neighbours, max(len(pts) - 1, 0))
         if k == 0:
@@ -206,16 +258,20 @@ class Tracker:
 
     def feed(self, frame: np.ndarray) -> None:
         """Track every live point into ``frame`` (BGR ``(H, W, 3)`` or grey ``(H, W)`` uint8)."""
-        gray = self._gray(frame)
-        # one LK call for tree and background corners: the pyramids are built once per frame
+        raw_gray = self._gray(frame)
+        gray = self._lk_image(raw_gray)
         n = len(self.raw)
         bg = self.cam.pts if self.cam is not None and self.cam.available else np.zeros((0, 2), np.float32)
-        new, ok = lk_forward_backward(self.prev, gray, np.vstack([self.raw, bg]).astype(np.float32),
-                                      self.params.fb_max_error)
-        cam = self.cam.update_tracked(new[n:], ok[n:], gray) if self.cam is not None else self.camera[0]
+        if gray is raw_gray:          # one LK call for tree and background: pyramids built once
+            new, ok = lk_forward_backward(self.prev, gray, np.vstack([self.raw, bg]).astype(np.float32),
+                                          self.params.fb_max_error)
+            bg_new, bg_ok, new, ok = new[n:], ok[n:], new[:n], ok[:n]
+        else:                         # the tree on the light-normalized frames, the background on
+            new, ok = lk_forward_backward(self.prev, gray, self.raw, self.params.fb_max_error)  # grey
+            bg_new, bg_ok = lk_forward_backward(self.prev_raw, raw_gray, bg, self.params.fb_max_error)
+        cam = self.cam.update_tracked(bg_new, bg_ok, raw_gray) if self.cam is not None else self.camera[0]
         cam = np.array(cam, float)
         cam[:, 2] /= self.s           # the working image's affine, in frame px
-        new, ok = new[:n], ok[:n]
         self.alive &= ok
         self.raw = np.where(self.alive[:, None], new, self.raw).astype(np.float32)
         stab = apply_affine(cam, self.raw / self.s).astype(np.float32)
@@ -224,7 +280,7 @@ class Tracker:
         self.points.append(stab)
         self.valid.append(self.alive.copy())
         self.camera.append(cam)
-        self.prev = gray
+        self.prev, self.prev_raw = gray, raw_gray
 
     def _reject_jerks(self, stab: np.ndarray) -> None:
         """Kill tracks whose per-frame step changes abruptly (branches sway smoothly; a track
@@ -270,11 +326,17 @@ class Tracker:
         if tr.points.shape[1] == 0:
             tr.warnings.append("no corners found inside the outline; check that it surrounds the tree")
         elif tr.n_frames > 2:
-            sway = tr.sway_px()
-            if sway < 0.5:
+            s = tr.track_sway()
+            s = s[np.isfinite(s)]
+            # the crown's sway (the moving quarter of the tracks), against what LK resolves: a
+            # still tree's tracks show only their noise (~0.02-0.05 px); a tree swaying a pixel a
+            # second shows several tenths even on tracks that live a second
+            sway = float(np.percentile(s, 75)) if len(s) else 0.0
+            if sway < STILL_SWAY_PX:
                 tr.warnings.append(
-                    f"the tree barely moves (median sway {sway:.2f} px); the hierarchy leans on "
-                    "position, motion will be faint — a windier clip gives a better model")
+                    f"the tree barely moves (the crown's tracks sway {sway:.2f} px, below the "
+                    f"{STILL_SWAY_PX} px tracking resolves); the hierarchy leans on position, the "
+                    "motion will be faint — a windier clip gives a better model")
         if self.cam is not None and not self.cam.available:
             tr.warnings.append("too little background outside the outline to remove camera motion; "
                                "use a tripod clip or leave some background in frame")
