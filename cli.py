@@ -21,7 +21,7 @@ import time
 import traceback
 from types import SimpleNamespace
 
-from . import __version__
+from . import __version__, api
 from .core import pipeline
 from .core.detail.branch_mesh import MeshParams
 from .core.detail.leaf_clusters import LeafParams
@@ -275,21 +275,13 @@ def _generate_from_tree(args, plan, tree, name, outputs, wanted) -> int:
 
 
 def settings_from_args(args) -> pipeline.Settings:
-    """The :class:`~.core.pipeline.Settings` of a reconstruction asked for by ``args``."""
-    s = pipeline.Settings(levels=args.levels, skeleton=args.skeleton, frames=args.frames, scale=args.scale,
-                          height_m=args.height)
-    s.lift.conifer = args.conifer
-    s.motion.solver = args.solver
-    s.twigs.depth = args.twigs
-    s.fit_branches = not args.no_branch_fit
-    s.curliness, s.bark = args.curliness, args.bark
-    if args.no_leaves:
-        s.leaves = None
-    else:
-        assert s.leaves is not None
-        s.leaves.density, s.leaves.cards = args.leaf_density, args.leaf_cards
-        s.leaves.flutter_hz = args.flutter_hz
-    return s
+    """The :class:`~.core.pipeline.Settings` of a reconstruction asked for by ``args``, checked
+    (:func:`.api.settings`: the same keywords a script passes)."""
+    return api.settings(levels=args.levels, skeleton=args.skeleton, frames=args.frames, scale=args.scale,
+                        height_m=args.height, conifer=args.conifer, solver=args.solver, twigs=args.twigs,
+                        fit_branches=not args.no_branch_fit, curliness=args.curliness, bark=args.bark,
+                        leaves=not args.no_leaves, leaf_density=args.leaf_density, leaf_cards=args.leaf_cards,
+                        flutter_hz=args.flutter_hz)
 
 
 def _reconstruct(args, gen) -> int:
@@ -300,9 +292,8 @@ def _reconstruct(args, gen) -> int:
     names = ["skeleton.npz", "tree3d.npz", "overlay.png"] + ([] if args.no_video else ["overlay.mp4"]) \
         + (["result.npz"] if args.npz else []) \
         + (blender_files if gen is None else gb.planned_files(gen.req, blender_files, with_species=True))
-    settings = settings_from_args(args)
     _check_leaf_image(args.leaf_image)
-    pipeline.check_settings(settings)
+    settings = settings_from_args(args)
     _check_out(args.out, names, args.force)
     outputs = _blender_outputs() if blender_files else None
     if outputs is not None:
