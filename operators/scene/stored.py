@@ -18,6 +18,7 @@ import bpy
 
 from ...core.errors import InputError
 from ...core.tree3d import Tree3D, tree_bytes, tree_from_bytes
+from .trees import owners
 
 #: the ID property on a reconstructed tree's collection
 KEY = "_tree_from_video"
@@ -55,18 +56,14 @@ def video_of(coll) -> str:
     return str(coll[KEY]["video"])
 
 
-def _owners(objects) -> list:
-    return list({c.name: c for ob in objects for c in ob.users_collection if is_tree(c)}.values())
-
-
 def selected(context) -> tuple:
     """``(collection or None, why)``: the reconstructed tree a button works on — the one whose
     objects are selected, else the active object's, else the active collection (clicked in the
     Outliner), else the file's only one — and a short note (which one, or why there is none) for
     the panel."""
-    chosen = _owners(getattr(context, "selected_objects", None) or ())
+    chosen = owners(getattr(context, "selected_objects", None) or (), is_tree)
     if len(chosen) != 1 and getattr(context, "active_object", None) is not None:
-        chosen = _owners([context.active_object])
+        chosen = owners([context.active_object], is_tree)
     if len(chosen) == 1:
         return chosen[0], "selected"
     layer = getattr(getattr(context, "view_layer", None), "active_layer_collection", None)

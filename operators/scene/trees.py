@@ -46,11 +46,14 @@ def file_trees() -> list:
     return sorted((c for c in bpy.data.collections if is_tree(c)), key=lambda c: c.name)
 
 
-def _owners(objects) -> list:
+def owners(objects, is_one=None) -> list:
+    """The collections owning ``objects`` that are trees (``is_one``, default :func:`is_tree`),
+    each once, by name."""
+    is_one = is_one or is_tree
     found = {}
     for ob in objects:
         for coll in ob.users_collection:
-            if coll.name not in found and is_tree(coll):
+            if coll.name not in found and is_one(coll):
                 found[coll.name] = coll
     return [found[k] for k in sorted(found)]
 
@@ -65,9 +68,9 @@ def selected_trees(context) -> list:
     """The trees the user points at, by name: those owning a selected object; else the active
     object's tree (a new tree lands unselected with its rig active); else the active collection
     if it is a tree or holds trees (a forest clicked in the Outliner); else the file's only tree."""
-    found = _owners(context.selected_objects or ())
+    found = owners(context.selected_objects or ())
     if not found and context.active_object is not None:
-        found = _owners([context.active_object])
+        found = owners([context.active_object])
     layer = getattr(context.view_layer, "active_layer_collection", None)
     if not found and layer is not None and layer.collection != context.scene.collection:
         found = trees_in(layer.collection)
