@@ -103,13 +103,16 @@ def same_node_truth_corr(nodes2d: np.ndarray, sel: np.ndarray, truth: dict) -> f
     return float(np.median(out))
 
 
-def measure(variant: str, seed: int, folder: str, frames: int | None = None) -> dict:
-    """Run the pipeline on one sample and score it (see the module docstring)."""
+def measure(variant: str, seed: int, folder: str, frames: int | None = None, track: dict | None = None) -> dict:
+    """Run the pipeline on one sample and score it (see the module docstring); ``track`` overrides
+    fields of the tracking settings (``TrackParams``)."""
     truth = load_truth(folder)
     video = video_path(folder)
     n_truth = len(truth["nodes2d"])
     n = min(frames, n_truth) if frames else n_truth
     s = plain_settings(frames=f"0:{n}") if frames else plain_settings()
+    for k, v in (track or {}).items():
+        setattr(s.track, k, type(getattr(s.track, k))(v))
     t0 = time.perf_counter()
     res = pipeline.run(video, os.path.join(folder, "outline.json"), s)
     t_2d = time.perf_counter() - t0
@@ -172,9 +175,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--frames", type=int, help="use only the first N frames of each clip")
     ap.add_argument("--out", default=os.path.join(tempfile.gettempdir(), "tree_motion_truth"),
                     help="folder of the generated samples (reused)")
+    ap.add_argument("--track", action="append", default=[], metavar="FIELD=VALUE",
+                    help="override a tracking setting (TrackParams), e.g. --track redetect_every=0")
     ap.add_argument("--regenerate", action="store_true", help="generate the samples again")
     ap.add_argument("--json", help="also write every measurement to this JSON file")
     a = ap.parse_args(argv)
+    track = dict(kv.split("=", 1) for kv in a.track)
     variants = [v.strip() for v in a.variants.split(",") if v.strip()]
     bad = [v for v in variants if v not in st.VARIANTS]
     if bad:
@@ -189,7 +195,7 @@ def main(argv: list[str] | None = None) -> int:
         for seed, split in seeds_of(v, a.seeds):
             try:
                 folder = sample(v, seed, a.out, a.regenerate)
-                r = measure(v, seed, folder, a.frames)
+                r = measure(v, seed, folder, a.frames, track)
             except Exception as e:                    # one failing clip must not end the table
                 r = {"variant": v, "seed": seed, "error": f"{type(e).__name__}: {e}".splitlines()[0][:200],
                      "trace": traceback.format_exc()}

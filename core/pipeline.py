@@ -126,7 +126,7 @@ def build_3d(res: Result, s: Settings | None = None, name: str = "Tree",
     lifted = lift(sk, res.outline, s.lift, parts["lift"])
     base = sk.nodes2d[0, 0].astype(float)
     targets = image_to_plane(sk.nodes2d.astype(float), base)[..., [0, 2]]
-    mo = solve_motion(lifted.nodes, sk.parents, sk.level, targets, s.motion, parts["motion"])
+    mo = solve_motion(lifted.nodes, sk.parents, sk.level, targets, s.motion, parts["motion"], sk.confidence)
     height_px = max(float(lifted.envelope.z.max()), float(lifted.nodes[:, 2].max()), 1.0)
     scale = s.height_m / height_px
     if radius_px is not None:

@@ -19,7 +19,7 @@ from .appearance import AppearanceMaps
 from .hierarchy import Hierarchy
 from .tracks import Tracks
 
-VERSION = 1
+VERSION = 2   # 2: tracks born after frame 1 (re-detection)
 
 
 def stage_key(video: str, outline_mask: np.ndarray, start: int, stop: int, scale: float,
@@ -41,7 +41,8 @@ def save(folder: str, key: str, tracks: Tracks, maps: AppearanceMaps, hier: Hier
     sizes = np.array([len(m) for m in hier.members], np.int64)
     meta = {"version": VERSION, "fps": tracks.fps, "start": tracks.start, "size": list(tracks.size),
             "warnings": tracks.warnings, "factor": maps.factor}
-    atomic_savez(path, points=tracks.points, valid=tracks.valid, camera=tracks.camera,
+    times = tracks.times if tracks.times is not None else np.arange(tracks.n_frames) / tracks.fps
+    atomic_savez(path, points=tracks.points, valid=tracks.valid, camera=tracks.camera, times=times,
                  intensity=tracks.intensity, mean=maps.mean, std=maps.std, dark=maps.dark, mask=maps.mask,
                  first=maps.first, parent=hier.parent, level=hier.level, member_sizes=sizes,
                  members=np.concatenate(hier.members).astype(np.int64) if len(sizes) else np.zeros(0, np.int64),
@@ -60,7 +61,7 @@ def load(folder: str, key: str) -> tuple[Tracks, AppearanceMaps, Hierarchy] | No
             if meta.get("version") != VERSION:
                 return None
             tracks = Tracks(z["points"], z["valid"], z["camera"], z["intensity"], float(meta["fps"]),
-                            int(meta["start"]), tuple(meta["size"]), list(meta["warnings"]))
+                            int(meta["start"]), tuple(meta["size"]), list(meta["warnings"]), z["times"])
             maps = AppearanceMaps(z["mean"], z["std"], z["dark"], z["mask"], z["first"], float(meta["factor"]))
             members = np.split(z["members"], np.cumsum(z["member_sizes"])[:-1])
             hier = Hierarchy(z["parent"], z["level"], list(members))

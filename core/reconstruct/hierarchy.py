@@ -73,9 +73,11 @@ def motion_distance(disp: np.ndarray, valid: np.ndarray, i: np.ndarray, j: np.nd
     return m, n
 
 
-def affinity(tracks: Tracks, params: HierarchyParams) -> sp.csr_matrix:
-    """Symmetric sparse ``(P, P)`` affinity of spatial distance × motion similarity."""
-    p0 = tracks.points[0].astype(np.float64)
+def affinity(tracks: Tracks, params: HierarchyParams, sel_tracks: np.ndarray | None = None) -> sp.csr_matrix:
+    """Symmetric sparse ``(P, P)`` affinity of spatial distance × motion similarity (of the tracks
+    ``sel_tracks``, default all: then P is theirs)."""
+    cols = np.arange(tracks.points.shape[1]) if sel_tracks is None else sel_tracks
+    p0 = tracks.points[0, cols].astype(np.float64)
     n = len(p0)
     k = min(params.knn, n - 1)
     dist, idx = cKDTree(p0).query(p0, k=k + 1)
@@ -83,8 +85,8 @@ def affinity(tracks: Tracks, params: HierarchyParams) -> sp.csr_matrix:
     j = idx[:, 1:].ravel()
     d = dist[:, 1:].ravel()
     sel = np.unique(np.linspace(0, tracks.n_frames - 1, min(params.max_motion_frames, tracks.n_frames)).astype(int))
-    disp = (tracks.points[sel] - tracks.points[:1]).astype(np.float32)
-    m, common = motion_distance(disp, tracks.valid[sel], i, j)
+    disp = (tracks.points[sel][:, cols] - tracks.points[:1, cols]).astype(np.float32)
+    m, common = motion_distance(disp, tracks.valid[sel][:, cols], i, j)
     sigma_s = max(float(np.median(d)), 1e-3)
     enough = common >= max(3, len(sel) // 10)
     sigma_m = max(float(np.median(m[enough])) if enough.any() else 0.0, params.motion_floor_px)
@@ -166,10 +168,12 @@ def split_cluster(W: sp.csr_matrix, min_side: int) -> np.ndarray:
 
 def build_hierarchy(tracks: Tracks, params: HierarchyParams | None = None,
                     progress: ProgressFn | None = None) -> Hierarchy:
-    """Recursive binary normalized cut of the tracks into ``params.levels`` levels."""
+    """Recursive binary normalized cut of the tracks detected in frame 1 (:meth:`Tracks.initial`;
+    later tracks only add motion) into ``params.levels`` levels; members index all tracks."""
     params = params or HierarchyParams()
-    n = tracks.points.shape[1]
-    W = affinity(tracks, params) if n > 1 else sp.csr_matrix((n, n))
+    first = tracks.initial()
+    n = len(first)
+    W = affinity(tracks, params, first) if n > 1 else sp.csr_matrix((n, n))
     parent, level, members = [-1], [0], [np.arange(n)]
     queue = [0]
     expected = 2 ** (params.levels - 1) - 1
@@ -188,4 +192,4 @@ def build_hierarchy(tracks: Tracks, params: HierarchyParams | None = None,
             queue.append(len(members) - 1)
         done += 1
         report(progress, "hierarchy", done / max(expected, 1))
-    return Hierarchy(np.array(parent, np.int32), np.array(level, np.int32), members)
+    return Hierarchy(np.array(parent, np.int32), np.array(level, np.int32), [first[m] for m in members])

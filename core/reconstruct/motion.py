@@ -9,6 +9,9 @@ their subtrees being disjoint — the probabilistic solver maximizes
               · U(ω; [−δ_r, δ_r]³)                                          per-frame prior
               · [|Σ_τ r_i(τ)| ≤ Δ]                                          accumulated bound
 
+where each subtree node's track term is weighted by its 2D motion confidence c_j(t) (what the
+tracks measured there, :mod:`.node_motion`; floored at 0.05): a node moved by a guess pulls little.
+
 with K the orthographic projection along depth (x, z), x' the tracked 2D position, α the angle
 between the branch and its parent branch, σ_shape growing with the branching level d_i. Instead
 of a grid search it takes a few Gauss–Newton steps on the linearized track and shape terms
@@ -135,12 +138,14 @@ def smooth_chain_targets(targets: np.ndarray, parents: np.ndarray) -> np.ndarray
 
 
 def solve_motion(rest: np.ndarray, parents: np.ndarray, level: np.ndarray, targets: np.ndarray,
-                 params: MotionParams | None = None, progress: ProgressFn | None = None) -> Motion:
+                 params: MotionParams | None = None, progress: ProgressFn | None = None,
+                 confidence: np.ndarray | None = None) -> Motion:
     """3D node positions for every frame.
 
     ``rest (N, 3)`` frame-1 3D skeleton (px, plane frame), ``parents (N,)``, ``level (N,)``
     branching order, ``targets (F, N, 2)`` tracked positions projected into the plane as (x, z) px
-    (chain nodes' targets are first smoothed, :func:`smooth_chain_targets`). Frame 1 is ``rest``.
+    (chain nodes' targets are first smoothed, :func:`smooth_chain_targets`), ``confidence (F, N)``
+    the targets' motion confidence (None: all 1). Frame 1 is ``rest``.
     """
     params = params or MotionParams()
     if params.solver not in SOLVERS:
@@ -158,11 +163,12 @@ def solve_motion(rest: np.ndarray, parents: np.ndarray, level: np.ndarray, targe
         alpha1[d] = branch_angle(rest[nodes], rest[par], _grand_or_none(rest, grand, par))
     X = rest.astype(np.float64).copy()
     A = np.zeros((N, 3))
+    conf = np.ones((F, N)) if confidence is None else np.maximum(np.asarray(confidence, np.float64), 0.05)
     for t in range(1, F):
         if params.solver == "deterministic":
             X = _deterministic_frame(X, parents, lv, targets[t])
         else:
-            _probabilistic_frame(X, A, lv, targets[t], level, alpha1, height, params)
+            _probabilistic_frame(X, A, lv, targets[t], level, alpha1, height, params, conf[t])
         out[t] = X
         acc[t] = A
         if t % 10 == 0:
@@ -178,8 +184,10 @@ def _grand_or_none(X, grand, par):
     return g
 
 
-def _probabilistic_frame(X, A, lv: _Levels, target, level, alpha1, height, prm: MotionParams) -> None:
-    """One frame, in place on ``X (N, 3)`` and the accumulated rotations ``A (N, 3)``."""
+def _probabilistic_frame(X, A, lv: _Levels, target, level, alpha1, height, prm: MotionParams,
+                         conf: np.ndarray) -> None:
+    """One frame, in place on ``X (N, 3)`` and the accumulated rotations ``A (N, 3)``; ``conf (N,)``
+    weights each node's track term."""
     s_track = prm.sigma_track * height
     lam = 1.0 / prm.prior_sigma ** 2
     lam_rest = 1.0 / prm.rest_sigma ** 2
@@ -197,8 +205,9 @@ def _probabilistic_frame(X, A, lv: _Levels, target, level, alpha1, height, prm: 
             J = np.zeros((len(mem), 2, 3))
             J[:, 0, 1], J[:, 0, 2] = v[:, 2], -v[:, 1]
             J[:, 1, 0], J[:, 1, 1] = v[:, 1], -v[:, 0]
-            JTJ = np.einsum("mki,mkj->mij", J, J) / s_track ** 2
-            JTr = np.einsum("mki,mk->mi", J, r) / s_track ** 2
+            wt = conf[mem] / s_track ** 2
+            JTJ = np.einsum("mki,mkj->mij", J, J) * wt[:, None, None]
+            JTr = np.einsum("mki,mk->mi", J, r) * wt[:, None]
             # depth steps of the subtree (row y of −[v]×), measured from before this level moved
             Jy = np.stack([-v[:, 2], np.zeros(len(v)), v[:, 0]], 1)
             JTJ += Jy[:, :, None] * Jy[:, None, :] / s_depth ** 2

@@ -16,12 +16,12 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from ..outline import Outline
 from ..progress import ProgressFn, report
 from ..topology import branching_level, children_lists, edges_of, topological_order
 from .hierarchy import Hierarchy
+from .node_motion import follow_tracks
 from .tracks import Tracks
 
 FOLD_ALPHA = 0.4
@@ -34,7 +34,9 @@ class Skeleton2D:
 
     ``parents (N,)`` int32, -1 for the root (node 0, the trunk base); ``nodes2d (F, N, 2)``
     float32 pixels in frame-1 coordinates; ``level (N,)`` int32 branching order (0 on the trunk,
-    +1 after every bifurcation); ``fps`` frames per second; ``kind`` "traced" or "paper".
+    +1 after every bifurcation); ``fps`` frames per second; ``kind`` "traced" or "paper";
+    ``confidence (F, N)`` float32 motion confidence in [0, 1) (:mod:`.node_motion`; None: not
+    measured); ``times (F,)`` seconds from the first frame (None: ``index / fps``).
     """
 
     parents: np.ndarray
@@ -43,6 +45,8 @@ class Skeleton2D:
     fps: float
     kind: str = "traced"
     warnings: list[str] = field(default_factory=list)
+    confidence: np.ndarray | None = None
+    times: np.ndarray | None = None
 
     @property
     def n_nodes(self) -> int:
@@ -108,42 +112,10 @@ def outline_base(outline: Outline) -> np.ndarray:
     return np.array([0.5 * (row.min() + row.max()), float(y)])
 
 
-def node_motion(nodes0: np.ndarray, tracks: Tracks, scale: float, fixed: np.ndarray | None = None,
-                k: int = 40) -> np.ndarray:
-    """Move nodes with nearby tracks: ``(N, 2)`` frame-1 positions → ``(F, N, 2)`` pixels.
-
-    Per frame, a node's step is the weighted mean of the steps of tracks valid in both frames,
-    weights ``exp(-d² / 2s²)`` on frame-1 distance d with s = ``scale`` px among its k nearest
-    tracks; where those are all lost a wider neighbourhood (4s) is used, and the steps are summed
-    over frames (chained). ``fixed (N,)`` bool marks nodes that never move (the trunk base).
-    """
-    F, P = tracks.points.shape[:2]
-    N = len(nodes0)
-    out = np.repeat(nodes0[None].astype(np.float64), F, axis=0)
-    if P == 0 or F < 2:
-        return out.astype(np.float32)
-    tree = cKDTree(tracks.points[0])
-    kk = min(k * 4, P)
-    dist, idx = tree.query(nodes0, k=kk)
-    dist, idx = dist.reshape(N, kk), idx.reshape(N, kk)
-    steps = tracks.points[1:] - tracks.points[:-1]                 # (F-1, P, 2)
-    both = tracks.valid[1:] & tracks.valid[:-1]                     # (F-1, P)
-    steps = np.where(both[..., None], steps, 0.0).astype(np.float64)
-    move = np.zeros((F - 1, N, 2))
-    have = np.zeros((F - 1, N), bool)
-    for s, kn in ((scale, min(k, P)), (4 * scale, kk)):
-        w = np.exp(-dist[:, :kn] ** 2 / (2 * s * s))                 # (N, kn)
-        st = steps[:, idx[:, :kn]]                                  # (F-1, N, kn, 2)
-        va = both[:, idx[:, :kn]]                                   # (F-1, N, kn)
-        den = (va * w).sum(-1)
-        num = (st * w[..., None]).sum(-2)
-        ok = (den > 1e-6) & ~have
-        move[ok] = num[ok] / den[ok][:, None]
-        have |= ok
-    if fixed is not None:
-        move[:, fixed] = 0.0
-    out[1:] += np.cumsum(move, axis=0)
-    return out.astype(np.float32)
+def node_motion(nodes0: np.ndarray, tracks: Tracks, scale: float, fixed: np.ndarray | None = None) -> np.ndarray:
+    """Move nodes with nearby tracks: ``(N, 2)`` frame-1 positions → ``(F, N, 2)`` pixels
+    (:func:`.node_motion.follow_tracks` without the confidence)."""
+    return follow_tracks(nodes0, tracks, scale, fixed).nodes
 
 
 def crown_scale(outline: Outline) -> float:
@@ -164,6 +136,7 @@ def paper_skeleton(tracks: Tracks, hier: Hierarchy, outline: Outline, alpha: flo
     report(progress, "skeleton", 0.5)
     fixed = np.zeros(len(parents), bool)
     fixed[0] = True
-    nodes = node_motion(pos, tracks, NODE_MOTION_SCALE * crown_scale(outline), fixed)
+    mo = follow_tracks(pos, tracks, NODE_MOTION_SCALE * crown_scale(outline), fixed)
     report(progress, "skeleton", 1.0)
-    return Skeleton2D(parents, nodes, branching_level(parents), tracks.fps, "paper")
+    return Skeleton2D(parents, mo.nodes, branching_level(parents), tracks.fps, "paper",
+                      confidence=mo.confidence, times=tracks.times)

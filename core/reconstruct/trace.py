@@ -35,12 +35,12 @@ from ..topology import branching_level
 from .appearance import AppearanceMaps
 from .frame_evidence import frame_evidence
 from .hierarchy import Hierarchy
+from .node_motion import follow_tracks
 from .skeleton2d import (
     NODE_MOTION_SCALE,
     Skeleton2D,
     binarize,
     crown_scale,
-    node_motion,
 )
 from .tracks import Tracks
 
@@ -318,7 +318,7 @@ def hierarchy_geometry(hier: Hierarchy, p0: np.ndarray, base: np.ndarray, size: 
     place = np.array([meet[c] if c in meet else (p0[m].mean(0) if len(m) else base)
                       for c, m in enumerate(hier.members)], float)
     # trunk top: on the vertical through the base, at the lower crown (85% of tracks above it)
-    y_top = min(max(place[0, 1], float(np.quantile(p0[:, 1], 0.85))), base[1] - 0.15 * size)
+    y_top = min(max(place[0, 1], float(np.quantile(p0[hier.members[0], 1], 0.85))), base[1] - 0.15 * size)
     place[0] = [base[0], y_top]
     parents, pos = [-1], [np.asarray(base, float)]
     node_of: dict = {}
@@ -462,7 +462,7 @@ def traced_skeleton(tracks: Tracks, hier: Hierarchy, outline: Outline, maps: App
     sky = sky_likeness(maps)
     bx, by = trunk_base(ridge, ev, mask)
     p0 = tracks.points[0] * f
-    twigs, owner = foliage_targets(hier, p0, max(params.twig_tracks, len(p0) // params.max_twigs))
+    twigs, owner = foliage_targets(hier, p0, max(params.twig_tracks, len(hier.members[0]) // params.max_twigs))
     report(progress, "skeleton", 0.2)
     if has_evidence:
         parents, pos = _trace_paths(params, mask, rn, ridge, sky, background, hier, p0, twigs, (bx, by),
@@ -477,6 +477,7 @@ def traced_skeleton(tracks: Tracks, hier: Hierarchy, outline: Outline, maps: App
     pos = pos / f
     fixed = np.zeros(len(parents), bool)
     fixed[0] = True
-    nodes = node_motion(pos, tracks, NODE_MOTION_SCALE * crown_scale(outline), fixed)
+    mo = follow_tracks(pos, tracks, NODE_MOTION_SCALE * crown_scale(outline), fixed)
     report(progress, "skeleton", 1.0)
-    return Skeleton2D(parents, nodes, branching_level(parents), tracks.fps, "traced", warnings)
+    return Skeleton2D(parents, mo.nodes, branching_level(parents), tracks.fps, "traced", warnings,
+                      confidence=mo.confidence, times=tracks.times)

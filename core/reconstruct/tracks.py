@@ -3,7 +3,11 @@
 The tracker is fed one frame at a time (the pipeline streams the video once). Global camera
 motion is estimated from features *outside* the outline and removed, so every position in
 :class:`Tracks` is in frame-1 pixel coordinates. Lost points stay in the arrays and are marked
-invalid (never silently dropped); once lost, a track stays invalid.
+invalid (never silently dropped); once lost, a track stays invalid. Where the live tracks have
+thinned (leaf flutter, flicker and occluders kill them within seconds in real wind), new corners are
+detected every few frames: each track has its own span (``valid`` is False before its birth), and
+a track born late has, as its frame-1 row, an estimated reference: where it is now minus the
+displacement of the live tracks around it, so displacements stay comparable across tracks.
 """
 from __future__ import annotations
 
@@ -41,16 +45,23 @@ class TrackParams:
     light_sigma: float = 4.0      # px (working image): LK runs on the frame minus its blur at this
                                   # scale, rescaled to a fixed contrast, so a gain or offset change
                                   # (flicker, a cloud shadow) is not motion; 0: the raw grey frame
+    redetect_every: int = 4       # frames between checks for thinned tracks (0: never re-detect)
+    redetect_below: float = 0.6   # a grid cell over the crown is refilled when its live tracks fall
+                                  # below this share of its frame-1 count
+    max_tracks: int = 12000       # cap on all tracks ever started (memory: F x this x 9 bytes)
 
 
 @dataclass
 class Tracks:
     """Tracked Harris corners.
 
-    ``points (F, P, 2)`` float32 pixels in frame-1 coordinates (camera motion removed);
-    ``valid (F, P)`` bool; ``camera (F, 2, 3)`` float32 affine maps from each frame's image to
-    frame 1; ``intensity (P,)`` float32 grey level 0..255 at each corner in frame 1;
-    ``fps`` frames per second; ``start`` first frame index of the range; ``size`` (width, height).
+    ``points (F, P, 2)`` float32 pixels in frame-1 coordinates (camera motion removed); a track
+    born after frame 1 has its estimated frame-1 reference in row 0 and in every row before its
+    birth; ``valid (F, P)`` bool (False before birth and after loss); ``camera (F, 2, 3)``
+    float32 affine maps from each frame's image to frame 1; ``intensity (P,)`` float32 grey level
+    0..255 at each corner where it was first seen;
+    ``fps`` frames per second; ``start`` first frame index of the range; ``size`` (width, height);
+    ``times (F,)`` seconds from the first frame (the frames' timestamps; None: ``index / fps``).
     """
 
     points: np.ndarray
@@ -61,10 +72,16 @@ class Tracks:
     start: int
     size: tuple[int, int]
     warnings: list[str] = field(default_factory=list)
+    times: np.ndarray | None = None
 
     @property
     def n_frames(self) -> int:
         return self.points.shape[0]
+
+    def initial(self) -> np.ndarray:
+        """Indices of the tracks detected in frame 1 (the hierarchy and the skeleton's geometry
+        are built on them; later tracks only add motion)."""
+        return np.flatnonzero(self.valid[0])
 
     def displacement(self) -> np.ndarray:
         """``(F, P, 2)`` pixels moved since frame 1, NaN where invalid."""
@@ -210,24 +227,46 @@ class Tracker:
         if self.s < 1.0:
             mask = cv2.resize(mask.astype(np.uint8), (gray.shape[1], gray.shape[0]),
                               interpolation=cv2.INTER_NEAREST) > 0
+        self.mask = mask                            # the outline in the working image
         self.prev = self._lk_image(gray)
         self.prev_raw = gray
         raw = detect_corners(gray, mask, self.params)
         pts = (raw / self.s).astype(np.float32)
         self.fps, self.start, self.size = fps, start, (frame0.shape[1], frame0.shape[0])
         self.raw = raw                              # current positions in the working image
-        self.points = [pts.copy()]
+        self.ref = pts.copy()                       # frame-1 reference of every track (P, 2)
+        self.points = [pts.copy()]                  # per frame: (P_t, 2) for the P_t tracks born so far
         self.valid = [np.ones(len(pts), bool)]
         self.camera = [np.array([[1.0, 0, 0], [0, 1.0, 0]])]
-        full = cv2.cvtColor(frame0, cv2.COLOR_BGR2GRAY)
-        self.intensity = full[np.clip(pts[:, 1].round().astype(int), 0, full.shape[0] - 1),
-                              np.clip(pts[:, 0].round().astype(int), 0, full.shape[1] - 1)].astype(np.float32)
+        full = frame0 if frame0.ndim == 2 else cv2.cvtColor(frame0, cv2.COLOR_BGR2GRAY)
+        self.intensity = self._sample(full, pts)
         self.cam = CameraEstimator(gray, mask, self.params) if self.params.stabilize else None
         self.alive = np.ones(len(pts), bool)
         self.nbr = self._neighbours(pts)
         self.step = np.full((len(pts), 2), np.nan, np.float32)   # last stabilized step, px
         self.jerk = np.zeros(len(pts), np.float32)               # running mean |Δ step|, px
         self.resid = [np.zeros(len(pts), np.float32)]            # per frame: motion beyond neighbours
+        self._grid_init(raw)
+
+    @staticmethod
+    def _sample(gray: np.ndarray, pts: np.ndarray) -> np.ndarray:
+        """Grey levels ``(P,)`` float32 of ``gray`` at ``pts (P, 2)`` (nearest pixel)."""
+        return gray[np.clip(pts[:, 1].round().astype(int), 0, gray.shape[0] - 1),
+                    np.clip(pts[:, 0].round().astype(int), 0, gray.shape[1] - 1)].astype(np.float32)
+
+    def _grid_init(self, raw: np.ndarray) -> None:
+        """The crown's re-detection grid (about 12 × 12 cells over the outline, working px) and its
+        frame-1 corner count per cell."""
+        h, w = self.mask.shape
+        self.cell = max(8.0, self.crown * self.s / 12.0)
+        self.grid = (int(np.ceil(h / self.cell)), int(np.ceil(w / self.cell)))
+        self.count0 = self._cell_counts(raw)
+
+    def _cell_counts(self, pts: np.ndarray) -> np.ndarray:
+        gy, gx = self.grid
+        iy = np.clip((pts[:, 1] / self.cell).astype(int), 0, gy - 1)
+        ix = np.clip((pts[:, 0] / self.cell).astype(int), 0, gx - 1)
+        return np.bincount(iy * gx + ix, minlength=gy * gx)
 
     def _gray(self, frame: np.ndarray) -> np.ndarray:
         """Working grey image from a BGR frame ``(H, W, 3)`` or a grey one ``(H, W)``."""
@@ -248,49 +287,134 @@ class Tracker:
         spread = float(np.percentile(np.abs(hp), 90)) + 1e-3       # the frame's contrast
         return np.clip(hp * (40.0 / spread) + 128.0, 0, 255).astype(np.uint8)
 
-    def _neighbours(self, pts: np.ndarray) -> np.ndarray:
-        k = min(self.params.neighbours, max(len(pts) - 1, 0))
+    def _neighbours(self, pts: np.ndarray, among: np.ndarray | None = None) -> np.ndarray:
+        """``(P, k)`` indices of each point's nearest others (among the ``among`` mask if given)."""
+        cand = np.arange(len(pts)) if among is None else np.flatnonzero(among)
+        k = min(self.params.neighbours, max(len(cand) - 1, 0))
         if k == 0:
             return np.zeros((len(pts), 0), int)
         from scipy.spatial import cKDTree
-        _, idx = cKDTree(pts).query(pts, k=k + 1)
-        return idx[:, 1:]
+        _, idx = cKDTree(pts[cand]).query(pts, k=k + 1)
+        idx = cand[idx]
+        # drop each point itself (where it is among the candidates), keep k others
+        own = idx == np.arange(len(pts))[:, None]
+        order = np.argsort(own, axis=1, kind="stable")
+        return np.take_along_axis(idx, order, 1)[:, :k]
 
-    def feed(self, frame: np.ndarray) -> None:
-        """Track every live point into ``frame`` (BGR ``(H, W, 3)`` or grey ``(H, W)`` uint8)."""
+    def feed(self, frame: np.ndarray, dt: float = 1.0) -> None:
+        """Track every live point into ``frame`` (BGR ``(H, W, 3)`` or grey ``(H, W)`` uint8);
+        ``dt`` the time since the previous frame in nominal frame intervals (variable frame rate:
+        the jerk test compares speeds, not steps)."""
         raw_gray = self._gray(frame)
         gray = self._lk_image(raw_gray)
         n = len(self.raw)
         bg = self.cam.pts if self.cam is not None and self.cam.available else np.zeros((0, 2), np.float32)
+        live = np.flatnonzero(self.alive)
         if gray is raw_gray:          # one LK call for tree and background: pyramids built once
-            new, ok = lk_forward_backward(self.prev, gray, np.vstack([self.raw, bg]).astype(np.float32),
-                                          self.params.fb_max_error)
-            bg_new, bg_ok, new, ok = new[n:], ok[n:], new[:n], ok[:n]
+            new_l, ok_l = lk_forward_backward(self.prev, gray, np.vstack([self.raw[live], bg]).astype(np.float32),
+                                              self.params.fb_max_error)
+            bg_new, bg_ok, new_l, ok_l = new_l[len(live):], ok_l[len(live):], new_l[:len(live)], ok_l[:len(live)]
         else:                         # the tree on the light-normalized frames, the background on
-            new, ok = lk_forward_backward(self.prev, gray, self.raw, self.params.fb_max_error)  # grey
+            new_l, ok_l = lk_forward_backward(self.prev, gray, self.raw[live], self.params.fb_max_error)  # grey
             bg_new, bg_ok = lk_forward_backward(self.prev_raw, raw_gray, bg, self.params.fb_max_error)
         cam = self.cam.update_tracked(bg_new, bg_ok, raw_gray) if self.cam is not None else self.camera[0]
         cam = np.array(cam, float)
         cam[:, 2] /= self.s           # the working image's affine, in frame px
+        ok = np.zeros(n, bool)
+        ok[live] = ok_l
         self.alive &= ok
-        self.raw = np.where(self.alive[:, None], new, self.raw).astype(np.float32)
+        self.raw[live[ok_l]] = new_l[ok_l]
         stab = apply_affine(cam, self.raw / self.s).astype(np.float32)
-        self._reject_jerks(stab)
+        self._reject_jerks(stab, dt)
         self._reject_outliers(stab)
         self.points.append(stab)
         self.valid.append(self.alive.copy())
         self.camera.append(cam)
         self.prev, self.prev_raw = gray, raw_gray
+        every = self.params.redetect_every
+        if every > 0 and (len(self.points) - 1) % every == 0:
+            full = frame if frame.ndim == 2 else cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY)
+            self._refill(raw_gray, full, cam)
 
-    def _reject_jerks(self, stab: np.ndarray) -> None:
-        """Kill tracks whose per-frame step changes abruptly (branches sway smoothly; a track
-        dragged by a passer-by jumps from the branch's speed to the passer-by's)."""
-        step = stab - self.points[-1]
+    def _refill(self, gray: np.ndarray, full: np.ndarray, cam: np.ndarray) -> None:
+        """Detect new corners where the live tracks have thinned (grid cells over the crown below
+        ``redetect_below`` of their frame-1 count), away from live tracks, inside the outline
+        moved with the crown; they are born in the current frame."""
+        prm = self.params
+        room = prm.max_tracks - len(self.raw)
+        if room <= 0:
+            return
+        stab = self.points[-1]
+        ref_w = (stab - self.ref) * self.s             # working px: each track's displacement
+        alive_now = self.alive
+        # cells in frame-1 coordinates (the crown as it stood), counted at each live track's reference
+        count = self._cell_counts(self.ref[alive_now] * self.s)
+        need = (self.count0 >= 2) & (count < prm.redetect_below * self.count0)
+        deficit = int((self.count0 - count)[need].sum())
+        if deficit < max(4, 0.02 * self.count0.sum()):
+            return
+        h, w = self.mask.shape
+        iy = np.minimum((np.arange(h) / self.cell).astype(int), self.grid[0] - 1)
+        ix = np.minimum((np.arange(w) / self.cell).astype(int), self.grid[1] - 1)
+        region = need.reshape(self.grid)[iy[:, None], ix[None, :]].astype(np.uint8)
+        region &= self.mask.astype(np.uint8)
+        # the crown has moved since frame 1: shift the region by the live tracks' median
+        # displacement, and back through the camera into the current image; keep a margin
+        # inside the outline's edge the size of the crown's spread of displacements
+        shift = np.median(ref_w[alive_now], axis=0) if alive_now.any() else np.zeros(2)
+        inv = cv2.invertAffineTransform(np.asarray(cam, np.float64) * [[1, 1, self.s], [1, 1, self.s]])
+        inv[:, 2] += inv[:, :2] @ shift
+        region = cv2.warpAffine(region, inv, (w, h), flags=cv2.INTER_NEAREST)
+        spread = float(np.percentile(np.linalg.norm(ref_w[alive_now] - shift, axis=1), 90)) if alive_now.any() else 0.0
+        margin = int(np.clip(round(spread), 1, 0.05 * self.crown * self.s))
+        region = cv2.erode(region, np.ones((2 * margin + 1,) * 2, np.uint8))
+        occupied = np.zeros((h, w), np.uint8)
+        live = self.raw[alive_now].round().astype(int)
+        inside = (live[:, 0] >= 0) & (live[:, 0] < w) & (live[:, 1] >= 0) & (live[:, 1] < h)
+        occupied[live[inside, 1], live[inside, 0]] = 1
+        r = max(1, int(round(prm.min_distance)))
+        occupied = cv2.dilate(occupied, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1,) * 2))
+        region[occupied > 0] = 0
+        if not region.any():
+            return
+        pts = cv2.goodFeaturesToTrack(gray, maxCorners=min(deficit, room), qualityLevel=prm.quality,
+                                      minDistance=prm.min_distance, mask=region, blockSize=3,
+                                      useHarrisDetector=True, k=0.04)
+        if pts is None:
+            return
+        raw = pts.reshape(-1, 2).astype(np.float32)
+        st = apply_affine(cam, raw / self.s).astype(np.float32)
+        # frame-1 reference: minus the displacement of the live tracks around it
+        nb = self._neighbours(np.vstack([stab, st]), np.concatenate([alive_now, np.zeros(len(st), bool)]))[len(stab):]
+        disp = np.where(alive_now[nb][..., None], (stab - self.ref)[nb], np.nan)
+        est = nan_median_rows(disp)
+        ref = (st - np.nan_to_num(est)).astype(np.float32)
+        m = len(raw)
+        self.raw = np.vstack([self.raw, raw])
+        self.ref = np.vstack([self.ref, ref])
+        self.points[-1] = np.vstack([stab, st])
+        self.valid[-1] = np.concatenate([self.valid[-1], np.ones(m, bool)])
+        self.resid[-1] = np.concatenate([self.resid[-1], np.zeros(m, np.float32)])
+        self.alive = np.concatenate([self.alive, np.ones(m, bool)])
+        self.step = np.vstack([self.step, np.full((m, 2), np.nan, np.float32)])
+        self.jerk = np.concatenate([self.jerk, np.zeros(m, np.float32)])
+        self.intensity = np.concatenate([self.intensity, self._sample(full, raw / self.s)])
+        self.nbr = self._neighbours(self.points[-1], self.alive)
+
+    def _reject_jerks(self, stab: np.ndarray, dt: float = 1.0) -> None:
+        """Kill tracks whose per-frame step changes abruptly against the crown's (branches sway
+        smoothly; a track dragged by a passer-by, or one that jumped to another corner when its
+        leaf turned, changes speed from one frame to the next). The step is taken relative to the
+        live tracks' median step, so a gust moving the crown as one jerks nothing, while a patch of
+        tracks jumping together still does."""
+        step = (stab - self.points[-1]) / max(dt, 1e-3)          # px per nominal frame
+        if self.alive.any():
+            step = step - np.median(step[self.alive], axis=0)
         change = np.linalg.norm(step - self.step, axis=1)
         floor = self.params.jerk_frac * self.crown
         bad = self.alive & np.isfinite(change) & (change > np.maximum(floor, 6.0 * self.jerk))
         self.jerk = np.where(np.isfinite(change), 0.9 * self.jerk + 0.1 * np.nan_to_num(change), self.jerk)
-        self.step = step
+        self.step = np.where(self.alive[:, None], step, np.nan).astype(np.float32)
         self.alive &= ~bad
 
     def _reject_outliers(self, stab: np.ndarray) -> None:
@@ -302,7 +426,7 @@ class Tracker:
         """
         if self.nbr.shape[1] == 0:
             return
-        disp = stab - self.points[0]
+        disp = stab - self.ref
         d_n = np.where(self.alive[self.nbr][..., None], disp[self.nbr], np.nan)
         med = nan_median_rows(d_n)
         resid = np.linalg.norm(disp - np.nan_to_num(med), axis=1).astype(np.float32)
@@ -313,6 +437,7 @@ class Tracker:
         self.resid.append(resid)
         idx = np.flatnonzero(bad)
         for t in range(len(self.valid) - 1, 0, -1):
+            idx = idx[idx < len(self.resid[t])]
             if len(idx) == 0:
                 break
             idx = idx[self.resid[t][idx] > 0.25 * thr]
@@ -320,9 +445,14 @@ class Tracker:
 
     def result(self) -> Tracks:
         """All frames fed so far as :class:`Tracks` (with a warning when the tree barely moves)."""
-        tr = Tracks(np.stack(self.points).astype(np.float32), np.stack(self.valid),
-                    np.stack(self.camera).astype(np.float32), self.intensity, self.fps, self.start,
-                    self.size)
+        F, P = len(self.points), len(self.ref)
+        points = np.repeat(self.ref[None], F, axis=0)
+        valid = np.zeros((F, P), bool)
+        for t, (p, v) in enumerate(zip(self.points, self.valid)):
+            points[t, :len(p)] = p
+            valid[t, :len(v)] = v
+        tr = Tracks(points, valid, np.stack(self.camera).astype(np.float32), self.intensity, self.fps,
+                    self.start, self.size)
         if tr.points.shape[1] == 0:
             tr.warnings.append("no corners found inside the outline; check that it surrounds the tree")
         elif tr.n_frames > 2:

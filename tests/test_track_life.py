@@ -1,0 +1,165 @@
+"""Tracks that live through the clip (issue 18): re-detection where tracks have thinned, late tracks
+matched to nodes where they were born, the crown moving as one is never a jerk, and the node motion
+confidence on hand cases."""
+import cv2
+import numpy as np
+import pytest
+
+from tree_from_video.core.outline import polygon_outline
+from tree_from_video.core.reconstruct import node_motion as nm
+from tree_from_video.core.reconstruct import tracks as trk
+
+pytestmark = [pytest.mark.blender, pytest.mark.bpy53]
+
+H, W = 240, 320
+BOX = np.array([[60, 40], [260, 40], [260, 200], [60, 200]], float)
+
+
+def _texture(seed, h=H, w=W):
+    rng = np.random.default_rng(seed)
+    img = rng.uniform(0, 255, (h // 4, w // 4)).astype(np.float32)
+    img = cv2.resize(img, (w, h), interpolation=cv2.INTER_CUBIC)
+    return np.clip(cv2.GaussianBlur(img, (0, 0), 1.0), 0, 255).astype(np.uint8)
+
+
+def _shifted(img, dx, dy):
+    m = np.array([[1, 0, dx], [0, 1, dy]], np.float64)
+    return cv2.warpAffine(img, m, (img.shape[1], img.shape[0]), flags=cv2.INTER_CUBIC, borderMode=cv2.BORDER_REFLECT)
+
+
+def _scene(offsets, scramble_from=None, seed=1):
+    """Frames of a texture translated by ``offsets (F, 2)``; from frame ``scramble_from`` on, the left
+    half of the box shows a new texture every frame (leaves turning: nothing there can be followed)."""
+    base = _texture(seed)
+    frames = []
+    for t, (dx, dy) in enumerate(offsets):
+        f = _shifted(base, dx, dy)
+        if scramble_from is not None and t >= scramble_from:
+            noise = _shifted(_texture(1000 + t), dx, dy)
+            f[:, :160] = noise[:, :160]
+        frames.append(f)
+    return frames
+
+
+def _track(frames, **kw):
+    outline = polygon_outline(BOX, W, H)
+    params = trk.TrackParams(stabilize=False, **kw)
+    tr = trk.Tracker(frames[0], outline, 24.0, 0, params)
+    for f in frames[1:]:
+        tr.feed(f)
+    return tr.result()
+
+
+def test_thinned_region_is_refilled_and_late_tracks_know_their_frame1_reference():
+    F = 30
+    t = np.arange(F)
+    offsets = np.stack([3.0 * np.sin(2 * np.pi * t / 24), 1.5 * np.sin(2 * np.pi * t / 17)], 1)
+    # the whole box moves; at frame 10 the left half shows another texture (the leaves have turned, the
+    # seam moves with the box): its tracks die and must come back
+    base = _texture(1)
+    turned = base.copy()
+    turned[:, :160] = _texture(77)[:, :160]
+    frames = [_shifted(base if k < 10 else turned, dx, dy) for k, (dx, dy) in enumerate(offsets)]
+    tracks = _track(frames)
+    first = tracks.initial()
+    left = tracks.points[0, :, 0] < 150
+    n_left0 = int((tracks.valid[0] & left).sum())
+    assert n_left0 > 30
+    # without re-detection the left half stays empty
+    plain = _track(frames, redetect_every=0)
+    left_p = plain.points[0, :, 0] < 150
+    assert (plain.valid[-1] & left_p).sum() < 0.1 * n_left0
+    # with it, the left half is at least half as full as in frame 1 at the end, by tracks born late
+    late = np.setdiff1d(np.arange(tracks.points.shape[1]), first)
+    assert (tracks.valid[-1] & left).sum() >= 0.5 * n_left0
+    assert len(late) > 0 and not tracks.valid[0, late].any()
+    # a late track that lives on has as frame-1 row where it is minus the crown's displacement (known)
+    late = late[tracks.valid[-1, late]]
+    born = np.argmax(tracks.valid[:, late], axis=0)
+    pos = tracks.points[born, late]
+    err = np.linalg.norm(tracks.points[0, late] - (pos - offsets[born]), axis=1)
+    assert len(late) > 30 and np.median(err) < 0.3 and np.percentile(err, 90) < 1.0
+    # before its birth a track is invalid and sits at its reference
+    k = late[0]
+    assert not tracks.valid[: born[0], k].any()
+    assert np.allclose(tracks.points[: born[0], k], tracks.points[0, k])
+
+
+def test_a_crown_moving_as_one_is_never_a_jerk():
+    F = 20
+    x = np.concatenate([np.zeros(6), 4.0 * np.arange(1, F - 5)])   # still, then 4 px per frame at once
+    offsets = np.stack([x, np.zeros(F)], 1)
+    tracks = _track(_scene(offsets), redetect_every=0)
+    first = tracks.initial()
+    inside = (tracks.points[0, first, 0] > 70) & (tracks.points[0, first, 0] < 250)
+    assert tracks.valid[-1, first[inside]].mean() > 0.9
+    d = tracks.points[-1, first[inside]] - tracks.points[0, first[inside]]
+    ok = tracks.valid[-1, first[inside]]
+    assert np.median(d[ok, 0]) == pytest.approx(x[-1], abs=0.2)
+
+
+def _hand_tracks(points, valid):
+    F, P = valid.shape
+    return trk.Tracks(np.asarray(points, np.float32), np.asarray(valid, bool), np.zeros((F, 2, 3), np.float32),
+                      np.zeros(P, np.float32), 24.0, 0, (100, 100))
+
+
+def test_late_track_is_matched_where_it_was_born_not_through_its_reference():
+    F = 10
+    pts = np.zeros((F, 3, 2))
+    valid = np.zeros((F, 3), bool)
+    pts[:, 0] = np.stack([np.arange(F) * 1.0, np.zeros(F)], 1)          # by node A, moving +x
+    valid[:, 0] = True
+    pts[:, 1] = [20.0, 0.0]                                              # by node B, still, lost at 5
+    valid[:6, 1] = True
+    pts[:, 2] = [0.0, 0.0]                                               # born at 5 by node B, moving +y;
+    pts[5:, 2] = np.stack([np.full(F - 5, 20.0), np.arange(F - 5) * 1.0], 1)   # its frame-1 row (0, 0)
+    valid[5:, 2] = True                                                  # would put it by node A
+    nodes = np.array([[0.0, 0.0], [20.0, 0.0]])
+    m = nm.follow_tracks(nodes, _hand_tracks(pts, valid), scale=2.0)
+    assert m.nodes[-1, 0] == pytest.approx([F - 1, 0.0], abs=1e-4)      # A: track 0 only
+    assert m.nodes[-1, 1] == pytest.approx([20.0, F - 1 - 5], abs=1e-4)  # B: still, then track 2's +y
+
+
+def test_confidence_is_one_minus_exp_of_half_the_weights_followed():
+    F = 4
+    pts = np.zeros((F, 2, 2))
+    pts[:, 1] = [3.0, 0.0]
+    valid = np.ones((F, 2), bool)
+    valid[2:, 1] = False
+    s = 2.0
+    m = nm.follow_tracks(np.array([[0.0, 0.0]]), _hand_tracks(pts, valid), scale=s)
+    # frames 1: both tracks (weights 1 and exp(-9/8)); frames 2-3: only track 0 (weight 1)
+    n1 = 1.0 + np.exp(-9.0 / (2 * s * s))
+    assert m.confidence[0, 0] == 1.0
+    assert m.confidence[1, 0] == pytest.approx(1 - np.exp(-n1 / 2), rel=1e-5)
+    assert m.confidence[3, 0] == pytest.approx(1 - np.exp(-0.5), rel=1e-5)
+
+
+def test_a_node_whose_tracks_all_die_follows_the_crown_and_says_it_is_unsure():
+    F = 6
+    pts = np.zeros((F, 2, 2))
+    pts[:, 0] = np.stack([np.arange(F) * 0.5, np.zeros(F)], 1)
+    pts[:, 1] = [100.0, 0.0]
+    valid = np.ones((F, 2), bool)
+    valid[3:, 1] = False                  # the far node's only track dies at frame 3
+    m = nm.follow_tracks(np.array([[0.0, 0.0], [100.0, 0.0]]), _hand_tracks(pts, valid), scale=2.0)
+    # from frame 3 on node 1 moves with the crown's median step (+0.5 px a frame), confidence 0
+    assert m.nodes[-1, 1, 0] == pytest.approx(100.0 + 0.5 * (F - 3), abs=1e-5)
+    assert (m.confidence[3:, 1] == 0).all() and (m.confidence[1:3, 1] > 0.3).all()
+
+
+def test_the_3d_solve_weights_each_node_track_term_by_its_confidence():
+    # exp(-c |Kx - x'|^2 / 2 sigma^2): confidence c on a node's track term is sigma / sqrt(c) for that node
+    from tree_from_video.core.reconstruct.motion import MotionParams, solve_motion
+    rest = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 100.0]])
+    parents, level = np.array([-1, 0]), np.zeros(2, int)
+    F = 6
+    targets = np.repeat(rest[None, :, [0, 2]], F, axis=0)
+    targets[1:, 1, 0] = 8.0                      # the tip's tracks say: 8 px to the right
+    conf = np.full((F, 2), 0.25)
+    weighted = solve_motion(rest, parents, level, targets, confidence=conf)
+    wide = solve_motion(rest, parents, level, targets, MotionParams(sigma_track=0.0075 / np.sqrt(0.25)))
+    sure = solve_motion(rest, parents, level, targets)
+    assert np.allclose(weighted.nodes, wide.nodes, atol=1e-4)
+    assert 0.0 < weighted.nodes[1, 1, 0] < sure.nodes[1, 1, 0]   # a less sure node is pulled less at first
