@@ -32,7 +32,7 @@ from .core.fileio import atomic_savez
 from .core.generate import batch as gb
 from .core.generate import species
 from .core.params import spec
-from .core.reconstruct import overlay, skeleton_io
+from .core.reconstruct import node_motion, overlay, skeleton_io
 from .core.reconstruct.motion import MotionParams
 from .core.reconstruct.run import ReconstructSettings
 from .core.tree3d import save_tree
@@ -320,8 +320,11 @@ def _reconstruct(args, gen) -> int:
     if outputs is not None and gen is None:          # with --generate the exports are per generated tree
         outputs.write_outputs(tree, args.out, wanted, overwrite=args.force, leaf_image=args.leaf_image,
                               report=lambda m: sys.stderr.write(m + "\n"))
+    conf = res.skeleton.confidence
+    sure = "" if conf is None else (f", motion confidence >= {node_motion.LOW_CONFIDENCE} at "
+                                    f"{1 - node_motion.low_share(conf):.0%} of node-frames")
     sys.stderr.write(f"done: {res.skeleton.n_nodes} nodes, {res.tracks.points.shape[1]} tracks, "
-                     f"{res.tracks.n_frames} frames -> {args.out}\n")
+                     f"{res.tracks.n_frames} frames{sure} -> {args.out}\n")
     if gen is not None:
         return _generate_from_tree(args, gen, tree, name, outputs, wanted)
     return 0

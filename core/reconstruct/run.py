@@ -20,10 +20,11 @@ from ..progress import ProgressFn, expected_seconds, report, stage_split
 from . import cache
 from .appearance import AppearanceAccumulator, AppearanceMaps
 from .hierarchy import Hierarchy, HierarchyParams, build_hierarchy
+from .node_motion import confidence_warning
 from .skeleton2d import FOLD_ALPHA, Skeleton2D, paper_skeleton
 from .trace import TraceParams, traced_skeleton
 from .tracks import Tracker, TrackParams, Tracks
-from .video import VideoInfo, iter_frames, open_video, parse_frame_range, prefetch
+from .video import VideoInfo, frame_times, iter_frames, open_video, parse_frame_range, prefetch
 
 SKELETON_KINDS = ("traced", "paper")
 
@@ -78,7 +79,8 @@ def check_reconstruct(s: ReconstructSettings) -> None:
 def track_video(info: VideoInfo, outline: Outline, start: int, stop: int, params: TrackParams,
                 progress: ProgressFn | None = None) -> tuple[Tracks, AppearanceMaps]:
     """One pass over frames ``start..stop-1``: tracks and appearance maps together."""
-    frames = prefetch(iter_frames(info, start, stop))
+    stamps: list[float] = []
+    frames = prefetch(iter_frames(info, start, stop, stamps))
     first = next(frames, None)
     if first is None:
         raise InputError(f"video '{info.path}' has no frame {start}; check --frames")
@@ -90,11 +92,19 @@ def track_video(info: VideoInfo, outline: Outline, start: int, stop: int, params
     total = stop - start
     for k, frame in enumerate(frames, start=1):
         gray = cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY)
-        tracker.feed(gray)
+        # the reader appends each frame's timestamp before handing it over; dt in units of the
+        # clip's typical interval (median of the last 50), whatever its header says
+        gaps = np.diff(stamps[max(0, k - 50):k + 1]) if len(stamps) > k else np.ones(1)
+        dt = gaps[-1] / np.median(gaps) if np.median(gaps) > 0 else 1.0
+        tracker.feed(gray, dt if np.isfinite(dt) and dt > 0 else 1.0)
         acc.feed(gray, tracker.camera[-1])
         if k % 5 == 0:
             report(progress, "tracking", k / total)
-    return tracker.result(), acc.maps()
+    tracks = tracker.result()
+    tracks.times, tracks.fps, note = frame_times(stamps[:tracks.n_frames], info.fps)
+    if note:
+        tracks.warnings.append(note)
+    return tracks, acc.maps()
 
 
 def run(video: str, outline_path, settings: ReconstructSettings | None = None,
@@ -136,4 +146,7 @@ def run(video: str, outline_path, settings: ReconstructSettings | None = None,
         skel = paper_skeleton(tracks, hier, outline, alpha=s.fold_alpha, progress=sk_prog)
     else:
         skel = traced_skeleton(tracks, hier, outline, maps, s.trace, sk_prog)
+    note = confidence_warning(skel.confidence) if skel.confidence is not None else None
+    if note:
+        skel.warnings.append(note)
     return Result(info, outline, start, stop, tracks, hier, maps, skel)

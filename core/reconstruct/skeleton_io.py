@@ -15,12 +15,21 @@ FORMAT_VERSION = 1
 
 
 def skeleton_arrays(skel: Skeleton2D, meta: dict | None = None) -> dict:
-    """Arrays of a skeleton file: parents, nodes2d, level, fps, meta_json."""
+    """Arrays of a skeleton file: parents, nodes2d, level, fps, times (F,) s, confidence (F, N)
+    (where measured), meta_json."""
     info = {"format": "tree_from_video.skeleton2d", "version": FORMAT_VERSION, "kind": skel.kind,
             "warnings": list(skel.warnings), **(meta or {})}
     return dict(parents=skel.parents.astype(np.int32), nodes2d=skel.nodes2d.astype(np.float32),
-                level=skel.level.astype(np.int32), fps=np.float64(skel.fps),
-                meta_json=np.array(json.dumps(info)))
+                level=skel.level.astype(np.int32), fps=np.float64(skel.fps), times=frame_times_of(skel),
+                meta_json=np.array(json.dumps(info)),
+                **({} if skel.confidence is None else {"confidence": skel.confidence.astype(np.float32)}))
+
+
+def frame_times_of(skel: Skeleton2D) -> np.ndarray:
+    """``(F,)`` seconds from the first frame: the skeleton's timestamps or ``index / fps``."""
+    if skel.times is not None:
+        return np.asarray(skel.times, np.float64)
+    return np.arange(skel.nodes2d.shape[0]) / float(skel.fps)
 
 
 def save_skeleton(path: str | os.PathLike, skel: Skeleton2D, meta: dict | None = None) -> None:
@@ -34,5 +43,7 @@ def load_skeleton(path: str | os.PathLike) -> tuple[Skeleton2D, dict]:
         meta = json.loads(str(z["meta_json"])) if "meta_json" in z else {}
         skel = Skeleton2D(z["parents"].astype(np.int32), z["nodes2d"].astype(np.float32),
                           z["level"].astype(np.int32), float(z["fps"]), meta.get("kind", "traced"),
-                          list(meta.get("warnings", [])))
+                          list(meta.get("warnings", [])),
+                          z["confidence"].astype(np.float32) if "confidence" in z else None,
+                          z["times"].astype(np.float64) if "times" in z else None)
     return skel, meta

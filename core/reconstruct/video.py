@@ -91,8 +91,11 @@ def _raw_frames(path: str) -> Iterator[np.ndarray]:
         cap.release()
 
 
-def iter_frames(info: VideoInfo, start: int = 0, stop: int | None = None) -> Iterator[np.ndarray]:
-    """Yield BGR frames ``start..stop-1`` (``(H, W, 3)`` uint8, scaled), one at a time."""
+def iter_frames(info: VideoInfo, start: int = 0, stop: int | None = None,
+                times: list | None = None) -> Iterator[np.ndarray]:
+    """Yield BGR frames ``start..stop-1`` (``(H, W, 3)`` uint8, scaled), one at a time; with
+    ``times`` a list, append each frame's timestamp (seconds, the container's presentation time
+    as the decoder reports it) as it is read."""
     stop = info.frame_count if stop is None else stop
     cap = cv2.VideoCapture(info.path)
     try:
@@ -102,11 +105,36 @@ def iter_frames(info: VideoInfo, start: int = 0, stop: int | None = None) -> Ite
             ok, frame = cap.read()
             if not ok:
                 return
+            if times is not None:
+                times.append(cap.get(cv2.CAP_PROP_POS_MSEC) / 1000.0)
             if info.scale != 1.0:
                 frame = cv2.resize(frame, (info.width, info.height), interpolation=cv2.INTER_AREA)
             yield frame
     finally:
         cap.release()
+
+
+def frame_times(stamps, fps: float) -> tuple[np.ndarray, float, str | None]:
+    """Frame times ``(F,)`` seconds from the first frame, from the decoder's ``stamps`` where they
+    are usable (finite, strictly increasing), else ``index / fps``; also the clip's frame rate
+    (frames over the time they span: what the header's ``fps`` should have said) and a warning
+    when it differs from the header by more than 2 %, or when the frames are irregular."""
+    st = np.asarray(stamps, np.float64)
+    n = len(st)
+    even = np.arange(n) / fps
+    if n < 2 or not np.isfinite(st).all() or (np.diff(st) <= 0).any():
+        return even, fps, None
+    t = st - st[0]
+    rate = (n - 1) / t[-1]
+    dt = np.diff(t)
+    notes = []
+    if abs(rate - fps) > 0.02 * fps:
+        notes.append(f"the video's header says {fps:g} fps but its {n} frames span {t[-1]:.2f} s "
+                     f"({rate:.3g} fps); times and sway frequencies use the frames' timestamps")
+    if dt.std() > 0.1 * dt.mean():
+        notes.append(f"the frame rate varies (frame gaps {dt.min() * 1000:.0f}-{dt.max() * 1000:.0f} ms); "
+                     "times use the frames' timestamps, keys are spaced at the mean rate")
+    return t, float(rate), "; ".join(notes) or None
 
 
 def prefetch(frames: Iterator[np.ndarray], depth: int = 4) -> Iterator[np.ndarray]:
