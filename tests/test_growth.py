@@ -301,3 +301,19 @@ def test_no_seed_leaves_a_bare_pole():
              for s in range(60)]
     print(f"\nnodes over 60 seeds: min {min(sizes)}, median {int(np.median(sizes))}")
     assert min(sizes) >= 60
+
+
+def test_a_sway_that_would_leave_the_envelope_is_scaled_down_to_stay_in_it(model):
+    env = envelopes.topiary("circle", 6.0)
+    calm = growth.grow_tree(model, env, growth.GrowParams(seed=1, n_frames=60, wind=1.0))
+    storm = growth.grow_tree(model, env, growth.GrowParams(seed=1, n_frames=60, wind=8.0))
+    assert calm.meta["sway_scale"] == 1.0                       # inside already: untouched
+    assert 0.0 < storm.meta["sway_scale"] < 1.0
+    region = envelopes.region_of(env)
+    H = float(storm.nodes3d[0, :, 2].max())
+    poly = envelopes.envelope_polygon(env)
+    P = storm.nodes3d.reshape(-1, 3).astype(float)[::5]
+    inside = _inside_2d(poly, P[:, [0, 2]], growth.SWAY_SLACK * H + region.cell)
+    assert inside.mean() >= 1 - 2 * growth.SWAY_OUTSIDE
+    # still a storm: it sways more than the calm tree
+    assert np.abs(storm.nodes3d - storm.nodes3d[:1]).mean() > 1.5 * np.abs(calm.nodes3d - calm.nodes3d[:1]).mean()

@@ -365,6 +365,52 @@ def lift_grown(g: Grown2D, region: Region2D, conifer: bool, p: GrowParams,
     return nodes, lifted
 
 
+#: the swaying crown stays in its envelope: at most this share of the node-frames that start inside
+#: may leave it by more than ``SWAY_SLACK`` × the tree's height
+SWAY_OUTSIDE = 0.005
+SWAY_SLACK = 0.02
+
+
+def contain_sway(parents: np.ndarray, rest: np.ndarray, rot: np.ndarray, region: Region2D) -> tuple[np.ndarray, float]:
+    """Forward kinematics of the sway ``rot (F, N, 3)`` about ``rest (N, 3)`` metres, with the
+    rotations scaled down by one factor for the tree (bisection, 6 steps) where the sway would carry
+    more than :data:`SWAY_OUTSIDE` of the nodes more than :data:`SWAY_SLACK` of the height outside
+    the envelope ``region`` (x, z) — an artist's silhouette holds the crown in wind too. Returns
+    ``(nodes3d (F, N, 3), factor)``; the factor is 1 for a sway that stays inside."""
+    import cv2
+    H = float(max(rest[:, 2].max(), 1e-6))
+    grow_px = int(np.ceil(SWAY_SLACK * H / region.cell))
+    near = cv2.dilate(region.full.astype(np.uint8), np.ones((2 * grow_px + 1,) * 2, np.uint8)).astype(bool)
+    Hm, Wm = near.shape
+
+    def inside(p: np.ndarray) -> np.ndarray:
+        q = np.round(region.to_px(p[..., [0, 2]])).astype(np.int64)
+        ok = (q[..., 0] >= 0) & (q[..., 0] < Wm) & (q[..., 1] >= 0) & (q[..., 1] < Hm)
+        out = np.zeros(q.shape[:-1], bool)
+        out[ok] = near[q[..., 1][ok], q[..., 0][ok]]
+        return out
+
+    start = inside(rest)
+
+    def outside_share(nodes: np.ndarray) -> float:
+        return float((~inside(nodes[:, start])).mean()) if start.any() else 0.0
+
+    nodes3d = forward_kinematics(parents, rest, rot)
+    if outside_share(nodes3d) <= SWAY_OUTSIDE:
+        return nodes3d, 1.0
+    lo, hi, best = 0.0, 1.0, None
+    for _ in range(6):
+        mid = 0.5 * (lo + hi)
+        cand = forward_kinematics(parents, rest, rot * mid)
+        if outside_share(cand) <= SWAY_OUTSIDE:
+            lo, best = mid, cand
+        else:
+            hi = mid
+    if best is None:
+        return forward_kinematics(parents, rest, rot * 0.0), 0.0
+    return best, lo
+
+
 def grow_tree(model: SpeciesModel, envelope: Envelope, params: GrowParams | None = None,
               audio: str | os.PathLike | np.ndarray | None = None,
               progress: ProgressFn | None = None) -> Tree3D:
@@ -400,7 +446,7 @@ def grow_tree(model: SpeciesModel, envelope: Envelope, params: GrowParams | None
     phase = None if p.tree_phase is None else np.asarray(p.tree_phase, float)
     rot = sample_rotations(model, g.parents, rest, n_frames, fps, rng_sway, p.time_offset_s, phase)
     rot *= gains[:, None, None]
-    nodes3d = forward_kinematics(g.parents, rest, rot)
+    nodes3d, sway_scale = contain_sway(g.parents, rest, rot, region)
     report(progress, "animating", 1.0)
     H = float(max(rest[:, 2].max(), 1e-6))
     radius = pipe_radii(g.parents, p.tip_radius * H, p.pipe_exponent)
@@ -410,7 +456,7 @@ def grow_tree(model: SpeciesModel, envelope: Envelope, params: GrowParams | None
             (None if audio is None else "envelope"), "stopped": g.stopped, "conifer": bool(conifer),
             "mu_deg": float(np.degrees(lifted.mu)), "height_px": float(H * k), "metres_per_px": float(1.0 / k),
             "leaf_density": float(p.leaf_density), "node_budget": int(p.node_budget),
-            "time_offset_s": float(p.time_offset_s)}
+            "time_offset_s": float(p.time_offset_s), "sway_scale": float(sway_scale)}
     tree = Tree3D(g.parents.astype(np.int32), nodes3d.astype(np.float32), radius,
                   branching_level(g.parents).astype(np.int32), fps, p.name or f"{model.name}_{int(p.seed)}", meta)
     if p.leaf_density > 0 and model.leaves is not None:
