@@ -321,8 +321,7 @@ def _reconstruct(args, gen) -> int:
         outputs.write_outputs(tree, args.out, wanted, overwrite=args.force, leaf_image=args.leaf_image,
                               report=lambda m: sys.stderr.write(m + "\n"))
     conf = res.skeleton.confidence
-    sure = "" if conf is None else (f", motion confidence >= {node_motion.LOW_CONFIDENCE} at "
-                                    f"{1 - node_motion.low_share(conf):.0%} of node-frames")
+    sure = "" if conf is None else f", {node_motion.confidence_summary(conf)}"
     sys.stderr.write(f"done: {res.skeleton.n_nodes} nodes, {res.tracks.points.shape[1]} tracks, "
                      f"{res.tracks.n_frames} frames{sure} -> {args.out}\n")
     if gen is not None:

@@ -15,6 +15,7 @@ import numpy as np
 from ..core import pipeline
 from ..core.errors import InputError
 from ..core.job import Job
+from ..core.reconstruct.node_motion import confidence_summary
 from ..core.reconstruct.video import open_video
 from . import jobs
 from .scene import annotation, clip_overlay, clip_view, stored
@@ -162,12 +163,19 @@ class TREE_OT_reconstruct(jobs.JobOperator, bpy.types.Operator):
         stored.store_tree(built["collection"], tree, res.info.path)     # Save Species, Generate: any tree, any time
         clip_overlay.store(res, built["collection"])
         props.leaf_polygons = built["leaf_polygons"]
+        props.motion_summary = motion_summary(res)
         for w in res.warnings:
             self.report({"WARNING"}, w)
         leaves = f", {built['leaf_polygons']:,} leaf polygons" if built["leaf_polygons"] else ""
         self.report({"INFO"}, f"{len(built['armature'].data.bones)} bones × {tree.n_frames} frames in "
                               f"'{tree.name}'{leaves}")
         return {"FINISHED"}
+
+
+def motion_summary(res) -> str:
+    """The panel's line on how well the motion was measured (empty when it was not)."""
+    conf = res.skeleton.confidence
+    return "" if conf is None else confidence_summary(conf)
 
 
 class TREE_OT_preview(jobs.JobOperator, bpy.types.Operator):
@@ -192,11 +200,13 @@ class TREE_OT_preview(jobs.JobOperator, bpy.types.Operator):
     def done(self, context, result):
         clip = clip_view.clip_for(os.path.abspath(result.info.path))
         clip_overlay.store(result, context.scene)        # kept in the file: drawn again after reopening
+        context.scene.tree_video.motion_summary = motion_summary(result)
         area = clip_view.show_clip(context, clip, result.start + 1)
         for w in result.warnings:
             self.report({"WARNING"}, w)
         where = "in the Movie Clip editor" if area is not None else f"over clip '{clip.name}' in the Movie Clip editor"
-        self.report({"INFO"}, f"{result.tracks.points.shape[1]} tracks, {result.skeleton.n_nodes} nodes {where}")
+        self.report({"INFO"}, f"{result.tracks.points.shape[1]} tracks, {result.skeleton.n_nodes} nodes {where}; "
+                              f"{motion_summary(result)}")
         jobs.redraw(context, "CLIP_EDITOR")
         return {"FINISHED"}
 

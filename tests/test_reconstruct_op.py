@@ -137,6 +137,13 @@ def test_preview_keeps_tracks_and_skeleton_for_the_clip_editor(addon):
     base = truth["nodes2d_image"][10, 0] / [480, 360]
     root = clip_overlay.overlay_of(clip_overlay.owners(VIDEO)[0])["nodes"][0, 0] / [480, 360]
     assert np.abs(root - base).max() < 0.03
+    # every node with its motion confidence, drawn in the colour of its bin; frame 1 is exact (1.0)
+    nodes, conf = clip_overlay.frame_confidence(VIDEO, 21)
+    kept = clip_overlay.overlay_of(clip_overlay.owners(VIDEO)[0])
+    assert len(nodes) == len(conf) == kept["nodes"].shape[1] and np.all(kept["confidence"][0] == 1.0)
+    assert ((conf >= 0) & (conf <= 1)).all() and conf[0] == 1.0 and np.mean(conf >= 0.5) > 0.9   # the base is fixed
+    assert clip_overlay.frame_confidence(VIDEO, 10) is None
+    assert addon.motion_summary.startswith("motion measured at ") and "of node-frames" in addon.motion_summary
     tree_from_video.unregister()
     assert not clip_overlay._decoded                              # cleared with the add-on
     tree_from_video.register()

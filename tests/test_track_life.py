@@ -163,3 +163,19 @@ def test_the_3d_solve_weights_each_node_track_term_by_its_confidence():
     sure = solve_motion(rest, parents, level, targets)
     assert np.allclose(weighted.nodes, wide.nodes, atol=1e-4)
     assert 0.0 < weighted.nodes[1, 1, 0] < sure.nodes[1, 1, 0]   # a less sure node is pulled less at first
+
+
+def test_overlay_colours_each_node_by_its_confidence():
+    from tree_from_video.core.reconstruct import overlay
+    from tree_from_video.core.reconstruct.skeleton2d import Skeleton2D
+    F = 2
+    nodes = np.array([[[50.0, 90.0], [50.0, 50.0], [20.0, 20.0], [80.0, 20.0]]] * F, np.float32)
+    conf = np.array([[1, 1, 1, 1], [1.0, 0.6, 0.2, 0.95]], np.float32)
+    sk = Skeleton2D(np.array([-1, 0, 1, 1]), nodes, np.array([0, 0, 1, 1]), 24.0, confidence=conf)
+    tracks = _hand_tracks(np.zeros((F, 1, 2)), np.ones((F, 1), bool))
+    tracks.camera[:] = np.eye(2, 3)
+    img = overlay.draw_frame(np.zeros((100, 100, 3), np.uint8), sk, tracks, 1)
+    at = [tuple(int(v) for v in img[int(y), int(x)]) for x, y in nodes[1]]
+    assert at[2] == overlay.CONFIDENCE_COLOURS[0]        # 0.2: red
+    assert at[1] == overlay.CONFIDENCE_COLOURS[1]        # 0.6: yellow
+    assert at[3] == overlay.CONFIDENCE_COLOURS[2]        # 0.95: green

@@ -175,6 +175,9 @@ class TreeVideoSettings(bpy.types.PropertyGroup):
                                                      "a procedural leaf")
     leaf_polygons: bpy.props.IntProperty(name="Leaf Polygons", default=0, min=0,
                                          description="Leaf polygons of the last tree built (read only)")
+    motion_summary: bpy.props.StringProperty(name="Motion", default="",
+                                             description="How well the last reconstruction or preview measured "
+                                                         "the motion (read only)")
     collection_name: bpy.props.StringProperty(name="Collection", default="Tree from Video",
                                               description="Collection that holds the tree's armature and mesh")
     replace_existing: bpy.props.BoolProperty(name="Replace Existing", default=False,

@@ -32,7 +32,7 @@ REACH = 3.0           # pairs farther than this × the neighbourhood's scale are
 @dataclass
 class NodeMotion:
     """``nodes (F, N, 2)`` float32 px per frame (frame-1 coordinates); ``confidence (F, N)`` float32
-    in [0, 1) (frame 1: 1), see the module docstring."""
+    in [0, 1] (frame 1 and fixed nodes such as the trunk base: 1), see the module docstring."""
 
     nodes: np.ndarray
     confidence: np.ndarray
@@ -42,6 +42,11 @@ def low_share(confidence: np.ndarray) -> float:
     """Share of node-frames after frame 1 with confidence below :data:`LOW_CONFIDENCE`."""
     c = np.asarray(confidence)[1:]
     return float((c < LOW_CONFIDENCE).mean()) if c.size else 0.0
+
+
+def confidence_summary(confidence: np.ndarray) -> str:
+    """One line for the panel and the batch output: the share of node-frames measured."""
+    return f"motion measured at {1 - low_share(confidence):.0%} of node-frames (confidence >= {LOW_CONFIDENCE})"
 
 
 def confidence_warning(confidence: np.ndarray, limit: float = 0.1) -> str | None:

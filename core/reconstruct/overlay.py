@@ -9,10 +9,13 @@ import numpy as np
 
 from ..fileio import publish
 from ..progress import ProgressFn, report
+from .node_motion import LOW_CONFIDENCE
 from .skeleton2d import Skeleton2D
 from .tracks import Tracks
 from .video import VideoInfo, iter_frames
 
+#: BGR of a node's motion confidence: below LOW_CONFIDENCE (poorly measured), up to 0.78 (≈ 3 tracks), above
+CONFIDENCE_COLOURS = ((40, 40, 255), (0, 220, 255), (80, 230, 80))
 LEVEL_COLOURS = [(40, 40, 255), (0, 160, 255), (0, 230, 255), (80, 255, 120), (255, 200, 0),
                  (255, 80, 200), (200, 200, 200)]
 
@@ -23,10 +26,18 @@ def to_image(points: np.ndarray, cam: np.ndarray) -> np.ndarray:
     return points @ inv[:, :2].T + inv[:, 2]
 
 
+def confidence_bins(confidence: np.ndarray) -> np.ndarray:
+    """Index into :data:`CONFIDENCE_COLOURS` for each confidence: 0 below ``LOW_CONFIDENCE``, 1 up to
+    0.78, 2 above."""
+    c = np.asarray(confidence)
+    return np.where(c < LOW_CONFIDENCE, 0, np.where(c < 0.78, 1, 2))
+
+
 def draw_frame(img: np.ndarray, skel: Skeleton2D, tracks: Tracks, t: int, zoom: int = 1) -> np.ndarray:
     """Draw valid tracks (small green dots) and the skeleton at frame ``t`` on a copy of ``img``,
     enlarged ``zoom`` times (small videos stay readable). Edges are coloured by branching level;
-    branch points and tips are marked."""
+    branch points and tips are marked; every node gets a dot coloured by its motion confidence in
+    that frame (red: poorly measured, yellow, green)."""
     out = cv2.resize(img, None, fx=zoom, fy=zoom, interpolation=cv2.INTER_LINEAR) if zoom > 1 else img.copy()
     cam = tracks.camera[t]
     pts = to_image(tracks.points[t][tracks.valid[t]], cam) * zoom
@@ -42,6 +53,10 @@ def draw_frame(img: np.ndarray, skel: Skeleton2D, tracks: Tracks, t: int, zoom: 
     n_kids = np.bincount(skel.parents[skel.parents >= 0], minlength=skel.n_nodes)
     for i in np.flatnonzero(n_kids != 1):
         cv2.circle(out, tuple(fixed[i]), (thick + 1) * 16, (255, 255, 255), -1, cv2.LINE_AA, shift=4)
+    if skel.confidence is not None:
+        bins = confidence_bins(skel.confidence[t])
+        for i in range(skel.n_nodes):
+            cv2.circle(out, tuple(fixed[i]), thick * 16, CONFIDENCE_COLOURS[bins[i]], -1, cv2.LINE_AA, shift=4)
     return out
 
 

@@ -40,9 +40,11 @@ def overlay_arrays(res) -> dict:
     pts = np.stack([to_image(tr.points[t].astype(np.float64), tr.camera[t]) for t in range(tr.n_frames)])
     pts[~np.asarray(tr.valid, bool)] = np.nan
     nodes = np.stack([to_image(sk.nodes2d[t].astype(np.float64), tr.camera[t]) for t in range(tr.n_frames)])
+    conf = sk.confidence if sk.confidence is not None else np.ones(sk.nodes2d.shape[:2], np.float32)
     return dict(size=np.array([res.info.width / res.info.scale, res.info.height / res.info.scale], np.float64),
                 scale=np.float64(res.info.scale), start=np.int64(res.start), tracks=pts.astype(np.float32),
-                nodes=nodes.astype(np.float32), edges=np.asarray(sk.edges(), np.int32))
+                nodes=nodes.astype(np.float32), edges=np.asarray(sk.edges(), np.int32),
+                confidence=np.asarray(conf, np.float32))
 
 
 def store(res, owner) -> None:
@@ -79,10 +81,8 @@ def clear() -> None:
     _decoded.clear()
 
 
-def frame_geometry(clip_path: str, clip_frame: int):
-    """(track points (P, 2), skeleton segment endpoints (2E, 2)) in normalized frame coordinates
-    (y up) for the clip's ``clip_frame`` (1-based) from the newest overlay of the clip's video,
-    or None when there is nothing to draw."""
+def _frame_data(clip_path: str, clip_frame: int):
+    """(overlay arrays, row t, normalizer) for the clip's ``clip_frame`` (1-based), or None."""
     found = owners(clip_path) if clip_path else []
     if not found:
         return None
@@ -96,6 +96,28 @@ def frame_geometry(clip_path: str, clip_frame: int):
     def norm(p):
         p = p / s
         return np.stack([p[:, 0] / w, 1.0 - p[:, 1] / h], axis=1)
+    return data, t, norm
+
+
+def frame_confidence(clip_path: str, clip_frame: int):
+    """(node positions (N, 2) in normalized frame coordinates, y up; their motion confidence (N,))
+    for the clip's ``clip_frame`` from the newest overlay of its video, or None (also for an
+    overlay kept before confidence was measured)."""
+    got = _frame_data(clip_path, clip_frame)
+    if got is None or "confidence" not in got[0]:
+        return None
+    data, t, norm = got
+    return norm(data["nodes"][t]), data["confidence"][t]
+
+
+def frame_geometry(clip_path: str, clip_frame: int):
+    """(track points (P, 2), skeleton segment endpoints (2E, 2)) in normalized frame coordinates
+    (y up) for the clip's ``clip_frame`` (1-based) from the newest overlay of the clip's video,
+    or None when there is nothing to draw."""
+    got = _frame_data(clip_path, clip_frame)
+    if got is None:
+        return None
+    data, t, norm = got
     tracks = data["tracks"][t]
     pts = norm(tracks[np.isfinite(tracks).all(axis=1)])
     seg = norm(data["nodes"][t][data["edges"].reshape(-1)])
@@ -113,6 +135,7 @@ def _draw():
     if geo is None:
         return
     pts, seg = geo
+    conf = frame_confidence(bpy.path.abspath(clip.filepath), space.clip_user.frame_current)
     v2d = bpy.context.region.view2d
     o = np.array(v2d.view_to_region(0.0, 0.0, clip=False), float)
     one = np.array(v2d.view_to_region(1.0, 1.0, clip=False), float)
@@ -129,6 +152,16 @@ def _draw():
         shader.uniform_float("color", (1.0, 0.55, 0.1, 1.0))
         batch_for_shader(shader, "LINES", {"pos": (o + seg * scale).tolist()}).draw(shader)
         gpu.state.line_width_set(1.0)
+    if conf is not None:                     # nodes by motion confidence: red poorly measured, yellow, green
+        from ...core.reconstruct.overlay import CONFIDENCE_COLOURS, confidence_bins
+        nodes, c = conf
+        bins = confidence_bins(c)
+        gpu.state.point_size_set(6.0)
+        for k, (b, g, r) in enumerate(CONFIDENCE_COLOURS):
+            sel = nodes[bins == k]
+            if len(sel):
+                shader.uniform_float("color", (r / 255.0, g / 255.0, b / 255.0, 1.0))
+                batch_for_shader(shader, "POINTS", {"pos": (o + sel * scale).tolist()}).draw(shader)
     gpu.state.point_size_set(1.0)
     gpu.state.blend_set("NONE")
 
