@@ -34,7 +34,7 @@ from .reconstruct.run import (
 from .reconstruct.run import run as run_2d
 from .reconstruct.tracks import detect_corners
 from .reconstruct.video import iter_frames, open_video, parse_frame_range
-from .tree3d import Tree3D, image_to_plane, pipe_radii
+from .tree3d import Tree3D, image_to_plane, pipe_radii, uneven_times
 
 __all__ = ["SKELETON_KINDS", "STAGE_COSTS_3D", "Result", "Settings", "add_leaves", "build_3d", "check_settings",
            "clip_frames", "first_frame", "run", "share_2d", "track_video"]
@@ -140,7 +140,7 @@ def build_3d(res: Result, s: Settings | None = None, name: str = "Tree",
             "base_px": [float(base[0]), float(base[1])],          # trunk base in frame 1 (x, y) px
             "video_size": [int(res.outline.mask.shape[1]), int(res.outline.mask.shape[0])]}
     tree = Tree3D(sk.parents.copy(), (mo.nodes * scale).astype(np.float32), radius, sk.level.copy(),
-                  sk.fps, name, meta)
+                  sk.fps, name, meta, times=uneven_times(sk.times, sk.fps))
     if fit is not None:
         meta["branch_fit"] = {"measured": fit.n_measured, "radii": radius_px is not None,
                               "trusted": int(vf.trusted.sum()),

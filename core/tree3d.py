@@ -70,7 +70,9 @@ LEAF_ARRAYS = ("node", "pos", "axis", "colour", "dark", "flutter", "scale")
 class Tree3D:
     """``parents (N,)`` int32 (-1 root = trunk base, node 0); ``nodes3d (F, N, 3)`` float32 metres
     for every frame; ``radius (N,)`` float32 metres (branch radius at each node); ``level (N,)``
-    int32 branching order; ``fps`` frames per second; ``name`` shown in Blender."""
+    int32 branching order; ``fps`` frames per second; ``name`` shown in Blender; ``times (F,)``
+    seconds from the first frame where the video's frames are unevenly spaced (None: ``index / fps``;
+    :func:`key_frames`)."""
 
     parents: np.ndarray
     nodes3d: np.ndarray
@@ -80,6 +82,7 @@ class Tree3D:
     name: str = "Tree"
     meta: TreeMeta = field(default_factory=lambda: TreeMeta())   # keys: :mod:`.meta`
     leaves: LeafClusters | None = None
+    times: np.ndarray | None = None
 
     @property
     def n_nodes(self) -> int:
@@ -93,6 +96,30 @@ class Tree3D:
         """``(N-1, 2)`` (parent, child) pairs: one bone per edge, named after the child node."""
         from .topology import edges_of
         return edges_of(self.parents)
+
+
+def uneven_times(times: np.ndarray | None, fps: float) -> np.ndarray | None:
+    """``times (F,)`` seconds when they stray from ``index / fps`` by more than 5 % of a frame
+    interval somewhere (a variable frame rate), else None (evenly spaced: keys at whole frames)."""
+    if times is None or len(times) < 2:
+        return None
+    t = np.asarray(times, np.float64)
+    even = np.arange(len(t)) / float(fps)
+    return t if np.abs(t - t[0] - even).max() > 0.05 / float(fps) else None
+
+
+def key_frames(tree: Tree3D) -> np.ndarray:
+    """``(F,)`` float32 scene frames of the tree's keys: ``1 + t · fps`` at the frames' times (so a
+    variable-frame-rate clip keeps its timing, on subframes), or ``1..F``."""
+    if tree.times is None:
+        return np.arange(1, tree.n_frames + 1, dtype=np.float32)
+    t = np.asarray(tree.times, np.float64)
+    return (1.0 + (t - t[0]) * float(tree.fps)).astype(np.float32)
+
+
+def last_key_frame(tree: Tree3D) -> int:
+    """The scene frame the tree's last key falls on or before (its animation's length in frames)."""
+    return max(tree.n_frames, int(np.ceil(float(key_frames(tree)[-1]) - 1e-6)))
 
 
 def pipe_radii(parents: np.ndarray, tip_radius: float, exponent: float = 2.0) -> np.ndarray:
@@ -138,7 +165,8 @@ def _arrays(tree: Tree3D) -> dict:
                  for k in LEAF_ARRAYS}
     return dict(parents=tree.parents.astype(np.int32), nodes3d=tree.nodes3d.astype(np.float32),
                 radius=tree.radius.astype(np.float32), level=tree.level.astype(np.int32),
-                fps=np.float64(tree.fps), meta_json=np.array(json.dumps(meta)), **extra)
+                fps=np.float64(tree.fps), meta_json=np.array(json.dumps(meta)), **extra,
+                **({} if tree.times is None else {"times": np.asarray(tree.times, np.float64)}))
 
 
 def save_tree(path: str | os.PathLike, tree: Tree3D) -> None:
@@ -177,4 +205,4 @@ def _read(source, what: str) -> Tree3D:
             leaves = LeafClusters(**arrays, **info)
         return Tree3D(z["parents"].astype(np.int32), z["nodes3d"].astype(np.float32),
                       z["radius"].astype(np.float32), z["level"].astype(np.int32), float(z["fps"]),
-                      name, meta, leaves)
+                      name, meta, leaves, z["times"].astype(np.float64) if "times" in z.files else None)

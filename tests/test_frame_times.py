@@ -56,3 +56,43 @@ def test_vfr_sample_reconstruction_carries_the_frames_true_times(tmp_path):
     skeleton_io.save_skeleton(path, sk)
     back, _ = skeleton_io.load_skeleton(path)
     assert np.array_equal(back.times, sk.times) and np.array_equal(back.confidence, sk.confidence)
+
+
+@pytest.mark.blender
+@pytest.mark.bpy53
+def test_uneven_times_are_kept_and_become_the_key_frames(tmp_path):
+    from tree_from_video.core.tree3d import key_frames, load_tree, save_tree, uneven_times
+
+    from trees import binary_tree
+    fps = 12.0
+    assert uneven_times(np.arange(8) / fps + 2.0, fps) is None              # even: keys at whole frames
+    assert uneven_times(None, fps) is None
+    times = np.cumsum([0, 1, 1, 3, 1, 1, 0.5, 0.5]) / fps                   # a gap and a burst
+    assert np.array_equal(uneven_times(times, fps), times)
+    tree = binary_tree(7, frames=8, fps=fps)
+    assert np.array_equal(key_frames(tree), np.arange(1, 9))
+    tree.times = times
+    assert np.allclose(key_frames(tree), 1 + times * fps)                  # 1, 2, 3, 6, 7, 8, 8.5, 9
+    path = str(tmp_path / "t.npz")
+    save_tree(path, tree)
+    assert np.array_equal(load_tree(path).times, times)
+
+
+@pytest.mark.blender
+@pytest.mark.bpy53
+def test_a_variable_frame_rate_tree_is_keyed_at_its_frames_times(tmp_path):
+    import bpy
+
+    from tree_from_video.core.tree3d import key_frames
+    from tree_from_video.operators.scene import action_api, build
+
+    from trees import binary_tree, empty_scene  # noqa: F401
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    tree = binary_tree(7, frames=8, fps=12.0)
+    tree.times = np.cumsum([0, 1, 1, 3, 1, 1, 0.5, 0.5]) / 12.0
+    res = build.build_tree(bpy.context, tree, "VFR")
+    fc = next(iter(action_api.action_fcurves(res["action"])))
+    co = np.empty(2 * len(fc.keyframe_points), np.float32)
+    fc.keyframe_points.foreach_get("co", co)
+    assert np.allclose(co[0::2], key_frames(tree)) and co[0] == 1.0 and co[-2] == pytest.approx(9.0)
+    assert bpy.context.scene.frame_end >= 9

@@ -314,6 +314,7 @@ def _carry(src: Tree3D, out: Tree3D) -> Tree3D:
     """Keep what else ``src`` carries (leaf clusters sit on original nodes, whose indices stay)."""
     if getattr(src, "leaves", None) is not None:
         out.leaves = src.leaves
+    out.times = src.times
     return out
 
 

@@ -85,11 +85,13 @@ def _edit_bones(data, names: list[str], heads: np.ndarray, tails: np.ndarray, pa
     return new
 
 
-def key_pose(rig, local: np.ndarray, names: list[str], action_name: str, created: Created):
-    """Key ``local (F, B, 4)`` quaternions on the rig's pose bones at frames ``1..F``."""
+def key_pose(rig, local: np.ndarray, names: list[str], action_name: str, created: Created,
+             frames: np.ndarray | None = None):
+    """Key ``local (F, B, 4)`` quaternions on the rig's pose bones at scene ``frames (F,)`` (default
+    ``1..F``; a variable-frame-rate clip's keys sit at its frames' times, :func:`key_frames`)."""
     action, make_fcurve = action_api.new_action(rig, action_name)
     created.add(bpy.data.actions, action)
-    frames = np.arange(1, len(local) + 1, dtype=np.float32)
+    frames = np.arange(1, len(local) + 1, dtype=np.float32) if frames is None else np.asarray(frames, np.float32)
     pose_index = {pb.name: i for i, pb in enumerate(rig.pose.bones)}
     for b, name in enumerate(names):
         if name not in pose_index:

@@ -17,7 +17,7 @@ import numpy as np
 from ...core import bones
 from ...core.detail import branch_mesh as bm
 from ...core.errors import InputError
-from ...core.tree3d import Tree3D
+from ...core.tree3d import Tree3D, key_frames, last_key_frame
 from . import armature, branch_mesh, objects, timing, trees
 from . import leaves as leaf_build  # build_tree has the parameters "leaves" and "materials"
 from . import materials as mats
@@ -92,14 +92,15 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
         local = bones.local_rotations(tree.parents, tree.nodes3d, rest)
         timings["rotations"] = time.perf_counter() - t
         t = time.perf_counter()
-        action, make_fcurve = armature.key_pose(rig, local, bones.bone_names(tree.parents), names["action"], created)
+        action, make_fcurve = armature.key_pose(rig, local, bones.bone_names(tree.parents), names["action"], created,
+                                                key_frames(tree))
         if leaf_names:
             leaf_build.key_leaf_bones(rig, make_fcurve, tree, leaf_names)
         timings["keys"] = time.perf_counter() - t
         render = scene.render
         saved = (render.fps, render.fps_base, scene.frame_start, scene.frame_end, scene.frame_current)
         created.on_failure(lambda: timing.restore_scene_timing(scene, *saved))
-        timing.fit_scene_timing(scene, tree.fps, tree.n_frames, first=not trees.scene_trees(scene, exclude=coll))
+        timing.fit_scene_timing(scene, tree.fps, last_key_frame(tree), first=not trees.scene_trees(scene, exclude=coll))
 
         mesh_obj = material = None
         if mesh:
