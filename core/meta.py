@@ -104,7 +104,7 @@ KEYS: dict[str, Key] = {
     "leaf_density": Key("share 0..1", ("growth.grow_tree",), "share of the species' foliage grown"),
     "node_budget": Key("count", ("growth.grow_tree",), "node budget of the growth"),
     "time_offset_s": Key("s", ("growth.grow_tree",), "phase of the sway (a forest's trees differ)"),
-    "sway_scale": Key("factor [0, 1]", ("growth.grow_tree",), "factor on the species' sway that keeps the swaying crown in "
-                      "its envelope (1: untouched)"),
+    "sway_scale": Key("factor [0, 1]", ("growth.grow_tree",), "factor on the species' sway (at wind 1) that keeps the "
+                      "swaying crown in its envelope (1: untouched)"),
     "format": Key("tree_from_video.tree3d", ("tree3d.save_tree",), "file format tag"),
 }

@@ -375,8 +375,9 @@ def contain_sway(parents: np.ndarray, rest: np.ndarray, rot: np.ndarray, region:
     """Forward kinematics of the sway ``rot (F, N, 3)`` about ``rest (N, 3)`` metres, with the
     rotations scaled down by one factor for the tree (bisection, 6 steps) where the sway would carry
     more than :data:`SWAY_OUTSIDE` of the nodes more than :data:`SWAY_SLACK` of the height outside
-    the envelope ``region`` (x, z) — an artist's silhouette holds the crown in wind too. Returns
-    ``(nodes3d (F, N, 3), factor)``; the factor is 1 for a sway that stays inside."""
+    the envelope ``region`` (x, z) — the species' own sway fits the artist's silhouette (the wind
+    strength scales it on top). Returns ``(nodes3d (F, N, 3), factor)``; the factor is 1 for a sway
+    that stays inside."""
     import cv2
     H = float(max(rest[:, 2].max(), 1e-6))
     grow_px = int(np.ceil(SWAY_SLACK * H / region.cell))
@@ -445,8 +446,12 @@ def grow_tree(model: SpeciesModel, envelope: Envelope, params: GrowParams | None
     report(progress, "animating", 0.85)
     phase = None if p.tree_phase is None else np.asarray(p.tree_phase, float)
     rot = sample_rotations(model, g.parents, rest, n_frames, fps, rng_sway, p.time_offset_s, phase)
-    rot *= gains[:, None, None]
-    nodes3d, sway_scale = contain_sway(g.parents, rest, rot, region)
+    # the species' own sway (wind 1) is kept inside the envelope; the wind then scales it (×2 is ×2)
+    unit, sway_scale = contain_sway(g.parents, rest, rot, region)
+    if np.all(gains == 1.0):
+        nodes3d = unit
+    else:
+        nodes3d = forward_kinematics(g.parents, rest, rot * (sway_scale * gains[:, None, None]))
     report(progress, "animating", 1.0)
     H = float(max(rest[:, 2].max(), 1e-6))
     radius = pipe_radii(g.parents, p.tip_radius * H, p.pipe_exponent)
