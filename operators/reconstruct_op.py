@@ -15,7 +15,7 @@ import numpy as np
 from ..core import pipeline
 from ..core.errors import InputError
 from ..core.job import Job
-from ..core.reconstruct.node_motion import confidence_summary
+from ..core.reconstruct.node_motion import confidence_summary, low_share
 from ..core.reconstruct.video import open_video
 from . import jobs
 from .scene import annotation, clip_overlay, clip_view, stored
@@ -163,19 +163,25 @@ class TREE_OT_reconstruct(jobs.JobOperator, bpy.types.Operator):
         stored.store_tree(built["collection"], tree, res.info.path)     # Save Species, Generate: any tree, any time
         clip_overlay.store(res, built["collection"])
         props.leaf_polygons = built["leaf_polygons"]
-        props.motion_summary = motion_summary(res)
+        props.motion_measured = measured_share(res)
         for w in res.warnings:
             self.report({"WARNING"}, w)
         leaves = f", {built['leaf_polygons']:,} leaf polygons" if built["leaf_polygons"] else ""
         self.report({"INFO"}, f"{len(built['armature'].data.bones)} bones × {tree.n_frames} frames in "
-                              f"'{tree.name}'{leaves}")
+                              f"'{tree.name}'{leaves}; {motion_summary(res)}")
         return {"FINISHED"}
 
 
 def motion_summary(res) -> str:
-    """The panel's line on how well the motion was measured (empty when it was not)."""
+    """The report's line on how well the motion was measured (empty when it was not)."""
     conf = res.skeleton.confidence
     return "" if conf is None else confidence_summary(conf)
+
+
+def measured_share(res) -> float:
+    """Share of node-frames measured (the panel's line), -1 when the motion was not measured."""
+    conf = res.skeleton.confidence
+    return -1.0 if conf is None else 1.0 - low_share(conf)
 
 
 class TREE_OT_preview(jobs.JobOperator, bpy.types.Operator):
@@ -200,7 +206,7 @@ class TREE_OT_preview(jobs.JobOperator, bpy.types.Operator):
     def done(self, context, result):
         clip = clip_view.clip_for(os.path.abspath(result.info.path))
         clip_overlay.store(result, context.scene)        # kept in the file: drawn again after reopening
-        context.scene.tree_video.motion_summary = motion_summary(result)
+        context.scene.tree_video.motion_measured = measured_share(result)
         area = clip_view.show_clip(context, clip, result.start + 1)
         for w in result.warnings:
             self.report({"WARNING"}, w)

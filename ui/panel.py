@@ -72,8 +72,8 @@ class TREE_PT_main(_TreePanel, bpy.types.Panel):
         row.enabled = not running
         row.operator("tree_video.preview", icon="TRACKING")
         props = getattr(context.scene, "tree_video", None)
-        if props is not None and props.motion_summary and not running:
-            layout.label(text=props.motion_summary.capitalize(), icon="INFO")
+        if props is not None and props.motion_measured >= 0 and not running:
+            layout.label(text=f"Motion measured: {props.motion_measured:.0%}", icon="INFO")
         if running:                       # the progress once: a bar with the stage and its percentage
             from ..operators import jobs
             col = layout.column(align=True)

@@ -175,9 +175,10 @@ class TreeVideoSettings(bpy.types.PropertyGroup):
                                                      "a procedural leaf")
     leaf_polygons: bpy.props.IntProperty(name="Leaf Polygons", default=0, min=0,
                                          description="Leaf polygons of the last tree built (read only)")
-    motion_summary: bpy.props.StringProperty(name="Motion", default="",
-                                             description="How well the last reconstruction or preview measured "
-                                                         "the motion (read only)")
+    motion_measured: bpy.props.FloatProperty(name="Motion Measured", default=-1.0, min=-1.0, max=1.0,
+                                             description="Share of node-frames whose motion the last reconstruction "
+                                                         "or preview measured (confidence >= 0.5; -1: none yet; "
+                                                         "read only)")
     collection_name: bpy.props.StringProperty(name="Collection", default="Tree from Video",
                                               description="Collection that holds the tree's armature and mesh")
     replace_existing: bpy.props.BoolProperty(name="Replace Existing", default=False,
