@@ -8,8 +8,8 @@ Two ways to place the nodes in frame 1 share the same node motion:
 * ``traced`` (default, :mod:`.trace`): the branches traced in the image, with the hierarchy's
   clusters attached through the crown.
 
-Node motion: every node follows the valid tracks near it, distance-weighted and chained frame to
-frame, so a node keeps moving when its own tracks are lost.
+Node motion (:mod:`.node_motion`): every node follows the valid tracks near it, distance-weighted
+and chained frame to frame, so a node keeps moving when its own tracks are lost.
 """
 from __future__ import annotations
 
@@ -110,12 +110,6 @@ def outline_base(outline: Outline) -> np.ndarray:
     y = ys.max()
     row = xs[ys >= y - 2]
     return np.array([0.5 * (row.min() + row.max()), float(y)])
-
-
-def node_motion(nodes0: np.ndarray, tracks: Tracks, scale: float, fixed: np.ndarray | None = None) -> np.ndarray:
-    """Move nodes with nearby tracks: ``(N, 2)`` frame-1 positions → ``(F, N, 2)`` pixels
-    (:func:`.node_motion.follow_tracks` without the confidence)."""
-    return follow_tracks(nodes0, tracks, scale, fixed).nodes
 
 
 def crown_scale(outline: Outline) -> float:
