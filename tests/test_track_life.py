@@ -1,9 +1,9 @@
 """Tracks that live through the clip (issue 18): re-detection where tracks have thinned, late tracks
 matched to nodes where they were born, the crown moving as one is never a jerk, and the node motion
 confidence on hand cases."""
-import cv2
 import numpy as np
 import pytest
+from textures import shifted, texture
 
 from tree_from_video.core.outline import polygon_outline
 from tree_from_video.core.reconstruct import node_motion as nm
@@ -15,27 +15,15 @@ H, W = 240, 320
 BOX = np.array([[60, 40], [260, 40], [260, 200], [60, 200]], float)
 
 
-def _texture(seed, h=H, w=W):
-    rng = np.random.default_rng(seed)
-    img = rng.uniform(0, 255, (h // 4, w // 4)).astype(np.float32)
-    img = cv2.resize(img, (w, h), interpolation=cv2.INTER_CUBIC)
-    return np.clip(cv2.GaussianBlur(img, (0, 0), 1.0), 0, 255).astype(np.uint8)
-
-
-def _shifted(img, dx, dy):
-    m = np.array([[1, 0, dx], [0, 1, dy]], np.float64)
-    return cv2.warpAffine(img, m, (img.shape[1], img.shape[0]), flags=cv2.INTER_CUBIC, borderMode=cv2.BORDER_REFLECT)
-
-
 def _scene(offsets, scramble_from=None, seed=1):
     """Frames of a texture translated by ``offsets (F, 2)``; from frame ``scramble_from`` on, the left
     half of the box shows a new texture every frame (leaves turning: nothing there can be followed)."""
-    base = _texture(seed)
+    base = texture(seed)
     frames = []
     for t, (dx, dy) in enumerate(offsets):
-        f = _shifted(base, dx, dy)
+        f = shifted(base, dx, dy)
         if scramble_from is not None and t >= scramble_from:
-            noise = _shifted(_texture(1000 + t), dx, dy)
+            noise = shifted(texture(1000 + t), dx, dy)
             f[:, :160] = noise[:, :160]
         frames.append(f)
     return frames
@@ -56,10 +44,10 @@ def test_thinned_region_is_refilled_and_late_tracks_know_their_frame1_reference(
     offsets = np.stack([3.0 * np.sin(2 * np.pi * t / 24), 1.5 * np.sin(2 * np.pi * t / 17)], 1)
     # the whole box moves; at frame 10 the left half shows another texture (the leaves have turned, the
     # seam moves with the box): its tracks die and must come back
-    base = _texture(1)
+    base = texture(1)
     turned = base.copy()
-    turned[:, :160] = _texture(77)[:, :160]
-    frames = [_shifted(base if k < 10 else turned, dx, dy) for k, (dx, dy) in enumerate(offsets)]
+    turned[:, :160] = texture(77)[:, :160]
+    frames = [shifted(base if k < 10 else turned, dx, dy) for k, (dx, dy) in enumerate(offsets)]
     tracks = _track(frames)
     first = tracks.initial()
     left = tracks.points[0, :, 0] < 150

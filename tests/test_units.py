@@ -1,8 +1,8 @@
 """Unit tests of the core's building blocks on cases small enough to check by hand."""
-import cv2
 import numpy as np
 import pytest
 import scipy.sparse as sp
+from textures import shifted, texture
 
 from tree_from_video.core.reconstruct import hierarchy, skeleton2d
 from tree_from_video.core.reconstruct import tracks as trk
@@ -86,21 +86,9 @@ def test_binarize_node_with_four_children():
         assert u == 0
 
 
-def _texture(h=240, w=320, seed=1):
-    rng = np.random.default_rng(seed)
-    img = rng.uniform(0, 255, (h // 4, w // 4)).astype(np.float32)
-    img = cv2.resize(img, (w, h), interpolation=cv2.INTER_CUBIC)
-    return np.clip(cv2.GaussianBlur(img, (0, 0), 1.0), 0, 255).astype(np.uint8)
-
-
-def _shift(img, dx, dy):
-    m = np.array([[1, 0, dx], [0, 1, dy]], np.float64)
-    return cv2.warpAffine(img, m, (img.shape[1], img.shape[0]), flags=cv2.INTER_CUBIC, borderMode=cv2.BORDER_REFLECT)
-
-
 def test_tracker_recovers_known_subpixel_shift():
-    img = _texture()
-    moved = _shift(img, 2.3, -1.6)
+    img = texture()
+    moved = shifted(img, 2.3, -1.6)
     mask = np.zeros(img.shape, bool)
     mask[40:200, 60:260] = True
     pts = trk.detect_corners(img, mask, trk.TrackParams())
@@ -110,8 +98,8 @@ def test_tracker_recovers_known_subpixel_shift():
 
 
 def test_camera_motion_removal_recovers_known_shift():
-    img = _texture(seed=4)
-    moved = _shift(img, -1.5, 2.0)
+    img = texture(seed=4)
+    moved = shifted(img, -1.5, 2.0)
     mask = np.zeros(img.shape, bool)
     mask[80:160, 120:200] = True
     cam = trk.CameraEstimator(img, mask, trk.TrackParams())
