@@ -77,11 +77,16 @@ class Region2D:
 
     def contains(self, p: np.ndarray) -> np.ndarray:
         """``(...)`` bool for (x, z) metres ``p (..., 2)``."""
+        return self.sample(self.mask, p)
+
+    def sample(self, grid: np.ndarray, p: np.ndarray) -> np.ndarray:
+        """``(...)`` bool: ``grid`` (a mask on this region's raster, e.g. :attr:`mask` or a dilated
+        :attr:`full`) at the nearest pixel of (x, z) metres ``p (..., 2)``; False off the raster."""
         q = np.round(self.to_px(p)).astype(np.int64)
-        H, W = self.mask.shape
+        H, W = grid.shape
         ok = (q[..., 0] >= 0) & (q[..., 0] < W) & (q[..., 1] >= 0) & (q[..., 1] < H)
         out = np.zeros(q.shape[:-1], bool)
-        out[ok] = self.mask[q[..., 1][ok], q[..., 0][ok]]
+        out[ok] = grid[q[..., 1][ok], q[..., 0][ok]]
         return out
 
     @property

@@ -382,14 +382,9 @@ def contain_sway(parents: np.ndarray, rest: np.ndarray, rot: np.ndarray, region:
     H = float(max(rest[:, 2].max(), 1e-6))
     grow_px = int(np.ceil(SWAY_SLACK * H / region.cell))
     near = cv2.dilate(region.full.astype(np.uint8), np.ones((2 * grow_px + 1,) * 2, np.uint8)).astype(bool)
-    Hm, Wm = near.shape
 
     def inside(p: np.ndarray) -> np.ndarray:
-        q = np.round(region.to_px(p[..., [0, 2]])).astype(np.int64)
-        ok = (q[..., 0] >= 0) & (q[..., 0] < Wm) & (q[..., 1] >= 0) & (q[..., 1] < Hm)
-        out = np.zeros(q.shape[:-1], bool)
-        out[ok] = near[q[..., 1][ok], q[..., 0][ok]]
-        return out
+        return region.sample(near, p[..., [0, 2]])
 
     start = inside(rest)
 

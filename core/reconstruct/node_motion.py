@@ -45,7 +45,7 @@ def low_share(confidence: np.ndarray) -> float:
 
 
 def confidence_summary(confidence: np.ndarray) -> str:
-    """One line for the panel and the batch output: the share of node-frames measured."""
+    """One line for the operators' reports and the batch output: the share of node-frames measured."""
     return f"motion measured at {1 - low_share(confidence):.0%} of node-frames (confidence >= {LOW_CONFIDENCE})"
 
 
