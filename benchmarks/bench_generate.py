@@ -13,9 +13,11 @@ import time
 
 import numpy as np
 
-from tree_from_video.core.generate import species
-
 from _package import load_package
+
+load_package()
+
+from tree_from_video.core.generate import species  # noqa: E402
 
 
 def main() -> None:
@@ -23,7 +25,6 @@ def main() -> None:
     ap.add_argument("--trees", type=int, default=100)
     ap.add_argument("--species", default="broad")
     args = ap.parse_args()
-    load_package()
     from tree_from_video.core.generate import envelopes, forest, growth
     model = species.load_species(species.species_library()[args.species])
     env = envelopes.topiary("circle", 8.0)

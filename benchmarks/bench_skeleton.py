@@ -11,9 +11,11 @@ import os
 import tempfile
 import time
 
-from tree_from_video.core.reconstruct import skeleton2d
-
 from _package import load_package
+
+load_package()
+
+from tree_from_video.core.reconstruct import skeleton2d  # noqa: E402
 
 
 def main() -> None:
@@ -23,7 +25,6 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=300)
     ap.add_argument("--variant", default="broad")
     args = ap.parse_args()
-    load_package()
     from tree_from_video.core import pipeline
     from tree_from_video.core.outline import load_outline
     from tree_from_video.core.reconstruct import hierarchy, trace, video
