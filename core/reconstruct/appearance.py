@@ -49,10 +49,18 @@ class AppearanceAccumulator:
         self.first = cv2.resize(frame0, self.size, interpolation=cv2.INTER_AREA)
         self.feed(cv2.cvtColor(frame0, cv2.COLOR_BGR2GRAY), np.array([[1.0, 0, 0], [0, 1.0, 0]]))
 
-    def feed(self, gray: np.ndarray, cam: np.ndarray) -> None:
-        """Add one frame's grey image ``(H, W)`` uint8; ``cam (2, 3)`` maps its coordinates to frame 1."""
+    def shrink(self, gray: np.ndarray) -> np.ndarray:
+        """A grey frame ``(H, W)`` uint8 at the working size (reads only what is fixed at
+        construction: another thread may shrink the next frame while one is fed)."""
+        return gray if self.factor == 1.0 else cv2.resize(gray, self.size, interpolation=cv2.INTER_AREA)
+
+    def feed(self, gray: np.ndarray | None, cam: np.ndarray, small: np.ndarray | None = None) -> None:
+        """Add one frame's grey image ``(H, W)`` uint8 (or None with ``small``, its :meth:`shrink`);
+        ``cam (2, 3)`` maps its coordinates to frame 1."""
         s = self.factor
-        small = gray if s == 1.0 else cv2.resize(gray, self.size, interpolation=cv2.INTER_AREA)
+        if small is None:
+            assert gray is not None
+            small = self.shrink(gray)
         gray = small.astype(np.float32)
         m = np.asarray(cam, np.float64).copy()
         m[:, 2] *= s                       # same map, working pixels on both sides

@@ -10,7 +10,6 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass, field
 
-import cv2
 import numpy as np
 
 from ..errors import InputError
@@ -80,24 +79,30 @@ def track_video(info: VideoInfo, outline: Outline, start: int, stop: int, params
                 progress: ProgressFn | None = None) -> tuple[Tracks, AppearanceMaps]:
     """One pass over frames ``start..stop-1``: tracks and appearance maps together."""
     stamps: list[float] = []
-    frames = prefetch(iter_frames(info, start, stop, stamps))
-    first = next(frames, None)
+    decoded = iter_frames(info, start, stop, stamps)
+    first = next(decoded, None)
     if first is None:
         raise InputError(f"video '{info.path}' has no frame {start}; check --frames")
     tracker = Tracker(first, outline, info.fps, start, params)
     if len(tracker.raw) < 8:
+        decoded.close()  # type: ignore[attr-defined]
         raise InputError(f"only {len(tracker.raw)} trackable corners inside the outline; "
                          "outline the whole tree (leaves and trunk) in the first frame")
     acc = AppearanceAccumulator(first, outline)
+
+    def prepare(frame: np.ndarray):
+        """In the decoding thread: the tracker's images and the appearance's small grey."""
+        images = tracker.prepare(frame)
+        return images, acc.shrink(images[0])
+
     total = stop - start
-    for k, frame in enumerate(frames, start=1):
-        gray = cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY)
+    for k, (images, small) in enumerate(prefetch(decoded, transform=prepare), start=1):
         # the reader appends each frame's timestamp before handing it over; dt in units of the
         # clip's typical interval (median of the last 50), whatever its header says
         gaps = np.diff(stamps[max(0, k - 50):k + 1]) if len(stamps) > k else np.ones(1)
         dt = gaps[-1] / np.median(gaps) if np.median(gaps) > 0 else 1.0
-        tracker.feed(gray, dt if np.isfinite(dt) and dt > 0 else 1.0)
-        acc.feed(gray, tracker.camera[-1])
+        tracker.feed(None, dt if np.isfinite(dt) and dt > 0 else 1.0, images)
+        acc.feed(None, tracker.camera[-1], small)
         if k % 5 == 0:
             report(progress, "tracking", k / total)
     tracks = tracker.result()

@@ -242,7 +242,7 @@ class Tracker:
         self.intensity = self._sample(full, pts)
         self.cam = CameraEstimator(gray, mask, self.params) if self.params.stabilize else None
         self.alive = np.ones(len(pts), bool)
-        self.nbr = self._neighbours(pts)
+        self._live_neighbours()
         self.step = np.full((len(pts), 2), np.nan, np.float32)   # last stabilized step, px
         self.jerk = np.zeros(len(pts), np.float32)               # running mean |Δ step|, px
         self.resid = [np.zeros(len(pts), np.float32)]            # per frame: motion beyond neighbours
@@ -284,29 +284,54 @@ class Tracker:
             return gray
         g = gray.astype(np.float32)
         hp = g - cv2.GaussianBlur(g, (0, 0), sig)
-        spread = float(np.percentile(np.abs(hp), 90)) + 1e-3       # the frame's contrast
-        return np.clip(hp * (40.0 / spread) + 128.0, 0, 255).astype(np.uint8)
+        spread = float(np.percentile(np.abs(hp), 90, overwrite_input=True)) + 1e-3   # the frame's contrast
+        hp *= 40.0 / spread                                 # in place: the same numbers as
+        hp += 128.0                                         # clip(hp * k + 128, 0, 255), a fifth
+        np.clip(hp, 0, 255, out=hp)                         # of the time
+        return hp.astype(np.uint8)
 
-    def _neighbours(self, pts: np.ndarray, among: np.ndarray | None = None) -> np.ndarray:
-        """``(P, k)`` indices of each point's nearest others (among the ``among`` mask if given)."""
+    def _neighbours(self, pts: np.ndarray, among: np.ndarray | None = None,
+                    rows: np.ndarray | None = None) -> np.ndarray:
+        """``(R, k)`` indices of the nearest others of the points ``rows`` (default: all) of ``pts``,
+        among the ``among`` mask if given."""
+        rows = np.arange(len(pts)) if rows is None else rows
         cand = np.arange(len(pts)) if among is None else np.flatnonzero(among)
         k = min(self.params.neighbours, max(len(cand) - 1, 0))
         if k == 0:
-            return np.zeros((len(pts), 0), int)
+            return np.zeros((len(rows), 0), int)
         from scipy.spatial import cKDTree
-        _, idx = cKDTree(pts[cand]).query(pts, k=k + 1)
+        _, idx = cKDTree(pts[cand]).query(pts[rows], k=k + 1)
         idx = cand[idx]
         # drop each point itself (where it is among the candidates), keep k others
-        own = idx == np.arange(len(pts))[:, None]
+        own = idx == rows[:, None]
         order = np.argsort(own, axis=1, kind="stable")
         return np.take_along_axis(idx, order, 1)[:, :k]
 
-    def feed(self, frame: np.ndarray, dt: float = 1.0) -> None:
-        """Track every live point into ``frame`` (BGR ``(H, W, 3)`` or grey ``(H, W)`` uint8);
-        ``dt`` the time since the previous frame in nominal frame intervals (variable frame rate:
-        the jerk test compares speeds, not steps)."""
-        raw_gray = self._gray(frame)
-        gray = self._lk_image(raw_gray)
+    def _live_neighbours(self) -> None:
+        """Neighbours of the live tracks among the live tracks (``nbr``, for the rows ``nbr_rows``):
+        a track once lost never comes back, so the dead need none."""
+        self.nbr_rows = np.flatnonzero(self.alive)
+        self.nbr = self._neighbours(self.points[-1], self.alive, self.nbr_rows)
+
+    def prepare(self, frame: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The images :meth:`feed` needs from ``frame`` (BGR ``(H, W, 3)`` or grey ``(H, W)``
+        uint8): its full-size grey, the working grey and the LK image. Reads only settings fixed
+        at construction, so another thread may prepare the next frame while one is fed (the
+        pipeline does it in the decoding thread: OpenCV and numpy release the GIL)."""
+        full = frame if frame.ndim == 2 else cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY)
+        raw_gray = self._gray(full)
+        return full, raw_gray, self._lk_image(raw_gray)
+
+    def feed(self, frame: np.ndarray | None, dt: float = 1.0,
+             prepared: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> None:
+        """Track every live point into ``frame`` (BGR ``(H, W, 3)`` or grey ``(H, W)`` uint8, or
+        None with ``prepared``, its :meth:`prepare` images); ``dt`` the time since the previous
+        frame in nominal frame intervals (variable frame rate: the jerk test compares speeds, not
+        steps)."""
+        if prepared is None:
+            assert frame is not None
+            prepared = self.prepare(frame)
+        full, raw_gray, gray = prepared
         n = len(self.raw)
         bg = self.cam.pts if self.cam is not None and self.cam.available else np.zeros((0, 2), np.float32)
         live = np.flatnonzero(self.alive)
@@ -333,7 +358,6 @@ class Tracker:
         self.prev, self.prev_raw = gray, raw_gray
         every = self.params.redetect_every
         if every > 0 and (len(self.points) - 1) % every == 0:
-            full = frame if frame.ndim == 2 else cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY)
             self._refill(raw_gray, full, cam)
 
     def _refill(self, gray: np.ndarray, full: np.ndarray, cam: np.ndarray) -> None:
@@ -377,15 +401,22 @@ class Tracker:
         region[occupied > 0] = 0
         if not region.any():
             return
-        pts = cv2.goodFeaturesToTrack(gray, maxCorners=min(deficit, room), qualityLevel=prm.quality,
-                                      minDistance=prm.min_distance, mask=region, blockSize=3,
+        # detect on the region's bounding box plus a margin wider than the Harris operator's reach
+        # (3 px block, 3 px Sobel): the same corners as on the whole frame, at the cost of the box
+        ys, xs = np.nonzero(region.any(1))[0], np.nonzero(region.any(0))[0]
+        y0, y1 = max(0, ys[0] - 4), min(h, ys[-1] + 5)
+        x0, x1 = max(0, xs[0] - 4), min(w, xs[-1] + 5)
+        pts = cv2.goodFeaturesToTrack(np.ascontiguousarray(gray[y0:y1, x0:x1]), maxCorners=min(deficit, room),
+                                      qualityLevel=prm.quality, minDistance=prm.min_distance,
+                                      mask=np.ascontiguousarray(region[y0:y1, x0:x1]), blockSize=3,
                                       useHarrisDetector=True, k=0.04)
         if pts is None:
             return
-        raw = pts.reshape(-1, 2).astype(np.float32)
+        raw = (pts.reshape(-1, 2) + np.array([x0, y0], np.float32)).astype(np.float32)
         st = apply_affine(cam, raw / self.s).astype(np.float32)
         # frame-1 reference: minus the displacement of the live tracks around it
-        nb = self._neighbours(np.vstack([stab, st]), np.concatenate([alive_now, np.zeros(len(st), bool)]))[len(stab):]
+        nb = self._neighbours(np.vstack([stab, st]), np.concatenate([alive_now, np.zeros(len(st), bool)]),
+                              np.arange(len(stab), len(stab) + len(st)))
         disp = np.where(alive_now[nb][..., None], (stab - self.ref)[nb], np.nan)
         est = nan_median_rows(disp)
         ref = (st - np.nan_to_num(est)).astype(np.float32)
@@ -399,7 +430,7 @@ class Tracker:
         self.step = np.vstack([self.step, np.full((m, 2), np.nan, np.float32)])
         self.jerk = np.concatenate([self.jerk, np.zeros(m, np.float32)])
         self.intensity = np.concatenate([self.intensity, self._sample(full, raw / self.s)])
-        self.nbr = self._neighbours(self.points[-1], self.alive)
+        self._live_neighbours()
 
     def _reject_jerks(self, stab: np.ndarray, dt: float = 1.0) -> None:
         """Kill tracks whose per-frame step changes abruptly against the crown's (branches sway
@@ -426,11 +457,15 @@ class Tracker:
         """
         if self.nbr.shape[1] == 0:
             return
+        keep = self.alive[self.nbr_rows]                  # rows still alive (tracks only ever die)
+        rows, nbr = self.nbr_rows[keep], self.nbr[keep]
         disp = stab - self.ref
-        d_n = np.where(self.alive[self.nbr][..., None], disp[self.nbr], np.nan)
+        d_n = np.where(self.alive[nbr][..., None], disp[nbr], np.nan)
         med = nan_median_rows(d_n)
-        resid = np.linalg.norm(disp - np.nan_to_num(med), axis=1).astype(np.float32)
-        far = np.linalg.norm(disp, axis=1) > 0.5 * self.crown
+        resid = np.zeros(len(stab), np.float32)
+        resid[rows] = np.linalg.norm(disp[rows] - np.nan_to_num(med), axis=1)
+        far = np.zeros(len(stab), bool)
+        far[rows] = np.linalg.norm(disp[rows], axis=1) > 0.5 * self.crown
         thr = self.params.outlier_frac * self.crown
         bad = self.alive & ((resid > thr) | far)
         self.alive &= ~bad

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass
-from typing import Iterator
+from typing import Any, Callable, Iterator
 
 import cv2
 import numpy as np
@@ -137,8 +137,10 @@ def frame_times(stamps, fps: float) -> tuple[np.ndarray, float, str | None]:
     return t, float(rate), "; ".join(notes) or None
 
 
-def prefetch(frames: Iterator[np.ndarray], depth: int = 4) -> Iterator[np.ndarray]:
-    """Decode ahead in a background thread (OpenCV releases the GIL), keeping ``depth`` frames.
+def prefetch(frames: Iterator[Any], depth: int = 4, transform: Callable[[Any], Any] | None = None) -> Iterator[Any]:
+    """Decode ahead in a background thread (OpenCV releases the GIL), keeping ``depth`` frames;
+    with ``transform``, yield ``transform(frame)`` computed in that thread too (work on a frame
+    that needs nothing from the frames before it: the second core prepares while the first tracks).
 
     Errors in the reader are re-raised in the consumer; closing the generator stops the reader.
     """
@@ -152,6 +154,8 @@ def prefetch(frames: Iterator[np.ndarray], depth: int = 4) -> Iterator[np.ndarra
     def reader():
         try:
             for f in frames:
+                if transform is not None:
+                    f = transform(f)
                 while not stop.is_set():
                     try:
                         q.put(f, timeout=0.1)
