@@ -119,3 +119,47 @@ def test_nan_median_rows_matches_numpy():
         warnings.simplefilter("ignore", RuntimeWarning)
         ref = np.nanmedian(a, axis=1)
     assert np.allclose(trk.nan_median_rows(a), ref, equal_nan=True)
+
+
+def test_prefetch_transforms_in_the_reader_thread_in_order_and_passes_errors():
+    import threading
+
+    from tree_from_video.core.reconstruct.video import prefetch
+    where = []
+
+    def square(x):
+        where.append(threading.current_thread().name)
+        return x * x
+    assert list(prefetch(iter(range(10)), transform=square)) == [x * x for x in range(10)]
+    assert set(where) == {"tree_from_video-decode"}
+
+    def broken(x):
+        if x == 3:
+            raise ValueError("bad frame 3")
+        return x
+    got = []
+    with pytest.raises(ValueError, match="bad frame 3"):
+        for x in prefetch(iter(range(10)), transform=broken):
+            got.append(x)
+    assert got == [0, 1, 2]
+
+
+def test_prepared_frames_track_like_plain_ones():
+    """Tracking frames whose images were prepared elsewhere (as the pipeline does in the decoding
+    thread) gives the same tracks as feeding the frames themselves."""
+    from tree_from_video.core.outline import Outline
+    img = texture(seed=2)
+    mask = np.zeros(img.shape, bool)
+    mask[40:200, 60:260] = True
+    frames = [shifted(img, 0.4 * k, -0.3 * k) for k in range(1, 6)]
+    runs = []
+    for prepared in (False, True):
+        tr = trk.Tracker(img, Outline(np.zeros((0, 2), np.float32), mask), 24.0, params=trk.TrackParams(redetect_every=2))
+        for f in frames:
+            if prepared:
+                tr.feed(None, prepared=tr.prepare(f))
+            else:
+                tr.feed(f)
+        runs.append(tr.result())
+    assert np.array_equal(runs[0].points, runs[1].points) and np.array_equal(runs[0].valid, runs[1].valid)
+    assert runs[1].valid[-1].mean() > 0.9
