@@ -42,12 +42,10 @@ __all__ = ["SKELETON_KINDS", "STAGE_COSTS_3D", "Result", "Settings", "add_leaves
 #: Seconds a 3D stage takes ≈ fixed + per frame × frames ``(fixed s, s per frame)``, measured like
 #: :data:`.reconstruct.run.STAGE_COSTS_2D` (sample_videos/broad and sparse, 12–180 frames, wheel and
 #: Blender 4.3, 2 cores): the branch fit 0.03–0.07 s and the lift 0.08–0.39 s whatever the length
-#: (together "lift"); the motion 0.13–0.19 s at 12 frames, 0.55–0.65 s at 48, 1.11–1.6 s at 96 and
-#: 1.7–3.0 s at 180, i.e. 11.5 ms a frame on an idle machine and up to 18 ms when the other core is
-#: busy (13 ms taken); twigs and leaves 0.03–0.1 s. At 180 frames the 2D stages are ≈ 40 % of the
-#: time and the motion ≈ 55 %; at the 555 frames of a user's clip the motion is ≈ 60 % (measured
-#: there: 7 of 12 s, when the bar gave it 81 → 99 %).
-STAGE_COSTS_3D = {"lift": (0.23, 0.0), "motion": (0.0, 0.013), "details": (0.04, 0.0)}
+#: (together "lift"); the motion, since each frame is one sparse solve (:mod:`.reconstruct.rotation_solve`),
+#: 1.5–2 ms a frame for the broad sample's 185 nodes (0.3 s at 180 frames; 13 ms a frame before);
+#: twigs and leaves 0.03–0.1 s.
+STAGE_COSTS_3D = {"lift": (0.23, 0.0), "motion": (0.0, 0.002), "details": (0.04, 0.0)}
 
 
 @dataclass
