@@ -105,12 +105,26 @@ class Tracks:
         return float(np.median(s[ok])) if ok.any() else 0.0
 
 
-def detect_corners(gray: np.ndarray, mask: np.ndarray, params: TrackParams) -> np.ndarray:
-    """Harris corners ``(P, 2)`` float32 inside ``mask`` (``cv2.goodFeaturesToTrack``)."""
-    pts = cv2.goodFeaturesToTrack(gray, maxCorners=params.max_corners, qualityLevel=params.quality,
-                                  minDistance=params.min_distance, mask=mask.astype(np.uint8),
+def detect_corners(gray: np.ndarray, mask: np.ndarray, params: TrackParams, max_corners: int | None = None) -> np.ndarray:
+    """Harris corners ``(P, 2)`` float32 inside ``mask`` (``cv2.goodFeaturesToTrack``; at most
+    ``max_corners``, default ``params.max_corners``). Detected on the mask's bounding box plus a
+    margin wider than the operator's reach (3 px block, 3 px Sobel): the same corners as on the
+    whole frame (the quality threshold is relative to the strongest corner inside the mask),
+    without the whole frame's response images (a 4K frame's are ~100 MB)."""
+    rows, cols = np.flatnonzero(mask.any(1)), np.flatnonzero(mask.any(0))
+    if len(rows) == 0:
+        return np.zeros((0, 2), np.float32)
+    h, w = mask.shape
+    y0, y1 = max(0, rows[0] - 4), min(h, rows[-1] + 5)
+    x0, x1 = max(0, cols[0] - 4), min(w, cols[-1] + 5)
+    pts = cv2.goodFeaturesToTrack(np.ascontiguousarray(gray[y0:y1, x0:x1]),
+                                  maxCorners=params.max_corners if max_corners is None else max_corners,
+                                  qualityLevel=params.quality, minDistance=params.min_distance,
+                                  mask=np.ascontiguousarray(mask[y0:y1, x0:x1]).astype(np.uint8),
                                   blockSize=3, useHarrisDetector=True, k=0.04)
-    return np.zeros((0, 2), np.float32) if pts is None else pts.reshape(-1, 2).astype(np.float32)
+    if pts is None:
+        return np.zeros((0, 2), np.float32)
+    return (pts.reshape(-1, 2) + np.array([x0, y0], np.float32)).astype(np.float32)
 
 
 def lk_forward_backward(prev: np.ndarray, cur: np.ndarray, pts: np.ndarray,
@@ -401,18 +415,9 @@ class Tracker:
         region[occupied > 0] = 0
         if not region.any():
             return
-        # detect on the region's bounding box plus a margin wider than the Harris operator's reach
-        # (3 px block, 3 px Sobel): the same corners as on the whole frame, at the cost of the box
-        ys, xs = np.nonzero(region.any(1))[0], np.nonzero(region.any(0))[0]
-        y0, y1 = max(0, ys[0] - 4), min(h, ys[-1] + 5)
-        x0, x1 = max(0, xs[0] - 4), min(w, xs[-1] + 5)
-        pts = cv2.goodFeaturesToTrack(np.ascontiguousarray(gray[y0:y1, x0:x1]), maxCorners=min(deficit, room),
-                                      qualityLevel=prm.quality, minDistance=prm.min_distance,
-                                      mask=np.ascontiguousarray(region[y0:y1, x0:x1]), blockSize=3,
-                                      useHarrisDetector=True, k=0.04)
-        if pts is None:
+        raw = detect_corners(gray, region, prm, min(deficit, room))
+        if len(raw) == 0:
             return
-        raw = (pts.reshape(-1, 2) + np.array([x0, y0], np.float32)).astype(np.float32)
         st = apply_affine(cam, raw / self.s).astype(np.float32)
         # frame-1 reference: minus the displacement of the live tracks around it
         nb = self._neighbours(np.vstack([stab, st]), np.concatenate([alive_now, np.zeros(len(st), bool)]),
