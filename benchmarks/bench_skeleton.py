@@ -28,6 +28,7 @@ def main() -> None:
     from tree_from_video.core import pipeline
     from tree_from_video.core.outline import load_outline
     from tree_from_video.core.reconstruct import hierarchy, trace, video
+    from tree_from_video.core.reconstruct.tracks import TrackParams
     from tree_from_video.sample_videos import synth_tree
 
     with tempfile.TemporaryDirectory() as tmp:
@@ -42,7 +43,7 @@ def main() -> None:
         decode = time.perf_counter() - t
         outline = load_outline(os.path.join(tmp, "outline.json"), info.width, info.height)
         t = time.perf_counter()
-        tracks, maps = pipeline.track_video(info, outline, 0, info.frame_count, pipeline.TrackParams())
+        tracks, maps = pipeline.track_video(info, outline, 0, info.frame_count, TrackParams())
         t_track = time.perf_counter() - t
         t = time.perf_counter()
         hier = hierarchy.build_hierarchy(tracks)
