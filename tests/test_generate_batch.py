@@ -237,11 +237,14 @@ def test_video_mode_fits_the_species_and_grows_in_its_envelope(tmp_path):
               f"frame 0 (swaying): {np.mean(over <= 0.01):.3f} with 1% slack, {np.mean(over <= 0.02):.3f} with 2%")
         # swaying: a node may lean out, but the tree sways like the video's: the 95th percentile of
         # how far its nodes get from their frame-0 place is at most twice the source tree's
-        # (measured 1.35-1.6x; a single tip's lean at frame 0 ranged 5-8.5 % of the height
-        # from one reconstruction of the same clip to the next, so it is no bar)
+        # (measured 1.35-1.6x, then 2.15x once the motion solve shared a subtree's turn along its
+        # chain; since generated trees are scaled to the source's excursion, 0.77-0.99x; a single
+        # tip's lean at frame 0 ranged 5-8.5 % of the height from one reconstruction of the same
+        # clip to the next, so it is no bar)
         assert np.mean(over <= 0.02) >= 0.98
         P = tree.nodes3d.astype(float)
         amp = np.percentile(np.linalg.norm(P - P[:1], axis=-1).max(0), 95) / H
+        print(f"  sway: 95th percentile excursion {amp:.3f} of the height, source {src_amp:.3f} (x{amp / src_amp:.2f})")
         assert amp <= 2.0 * src_amp, (amp, src_amp)
         assert f0[:, 2].max() > 0.75 * H and t["leaf_clusters"] > 0
 

@@ -327,3 +327,34 @@ def test_a_sway_that_would_leave_the_envelope_is_scaled_down_to_stay_in_it(model
     t1 = growth.grow_tree(model, env, growth.GrowParams(seed=1, n_frames=30, wind=1.0))
     t2 = growth.grow_tree(model, env, growth.GrowParams(seed=1, n_frames=30, wind=2.0))
     assert t1.meta["sway_scale"] == t2.meta["sway_scale"]
+
+
+def test_sway_excursion_by_hand():
+    # two nodes: one still, one swinging ±0.3 m about its mean on x: the farthest it gets is 0.3 m
+    X = np.zeros((4, 2, 3))
+    X[:, 1, 0] = [0.3, -0.3, 0.3, -0.3]
+    assert species.sway_excursion(X, 3.0) == pytest.approx(np.percentile([0.0, 0.3], 95) / 3.0)
+    assert species.sway_excursion(X[:1], 3.0) == 0.0
+
+
+def test_generated_trees_sway_as_far_as_their_source(model):
+    """At wind 1 a generated tree's nodes sway as far (share of the height) as the source's did,
+    whatever the spectra's per-bone amplitudes add up to along its chains; a species fitted before
+    the excursion was measured (None) is left as sampled."""
+    src = source_tree("broad")
+    assert model.sway_excursion == pytest.approx(
+        species.sway_excursion(src.nodes3d.astype(float), float(np.ptp(src.nodes3d[0, :, 2]))))
+    env = envelopes.topiary("circle", 12.0)           # roomy: the envelope scales nothing down
+    for seed in (0, 1, 2):
+        t = growth.grow_tree(model, env, growth.GrowParams(seed=seed, n_frames=60, leaf_density=0))
+        assert t.meta["sway_scale"] == 1.0
+        X = t.nodes3d.astype(float)
+        got = species.sway_excursion(X, float(X[0, :, 2].max()))
+        print(f"seed {seed}: excursion {got:.4f} of the height, source {model.sway_excursion:.4f}")
+        assert got == pytest.approx(model.sway_excursion, rel=0.05)
+    assert growth.match_excursion(t.parents, X[0], np.zeros((5,) + X[0].shape), 0.05) == 1.0    # no sway: 1
+    import dataclasses
+    raw = dataclasses.replace(model, sway_excursion=None)
+    assert growth.match_excursion(t.parents, X[0], np.ones((5,) + X[0].shape), None) == 1.0
+    t_raw = growth.grow_tree(raw, env, growth.GrowParams(seed=2, n_frames=60, leaf_density=0))
+    assert not np.allclose(t_raw.nodes3d, t.nodes3d)                    # as sampled: another sway

@@ -144,6 +144,7 @@ def test_fit_species_on_reconstruction_and_json_round_trip(tmp_path):
     assert '"format": "tree_from_video.species"' in text and '"version": 1' in text
     back = species.load_species(path)
     assert back.to_json() == m.to_json()
+    assert m.sway_excursion > 0 and back.sway_excursion == pytest.approx(m.sway_excursion, abs=1e-6)
     assert not [p for p in os.listdir(tmp_path) if p.startswith(".tmp")]
 
 
@@ -169,6 +170,7 @@ def test_species_library_ships_the_samples():
     for name, path in lib.items():
         m = species.load_species(path)
         assert m.name == name and m.conifer == (name == "conifer")
+        assert m.sway_excursion is None or m.sway_excursion > 0      # fitted before it was measured: None
         assert 0 < m.trunk_frac < 1 and m.n_bifurcations >= 10
 
 

@@ -371,6 +371,26 @@ SWAY_OUTSIDE = 0.005
 SWAY_SLACK = 0.02
 
 
+def match_excursion(parents: np.ndarray, rest: np.ndarray, rot: np.ndarray, target: float | None) -> float:
+    """The factor on the sampled sway ``rot (F, N, 3)`` (radians, about ``rest (N, 3)`` metres) that
+    makes the tree's :func:`~.species.sway_excursion` the source's ``target`` (share of the height;
+    None or 0: 1). The spectra give each node its own amplitude and phase, but how much of the
+    sway adds up along a chain of bones depends on how the source's motion was split between
+    neighbouring bones; the excursion is what a viewer compares. Two secant steps (forward
+    kinematics is nearly linear in the factor at these angles), within [1/4, 4]."""
+    if not target or target <= 0:
+        return 1.0
+    from .species import sway_excursion
+    H = float(max(rest[:, 2].max(), 1e-6))
+    factor = 1.0
+    for _ in range(2):
+        got = sway_excursion(forward_kinematics(parents, rest, rot * factor), H)
+        if got <= 1e-12:
+            return 1.0
+        factor = float(np.clip(factor * target / got, 0.25, 4.0))
+    return factor
+
+
 def contain_sway(parents: np.ndarray, rest: np.ndarray, rot: np.ndarray, region: Region2D) -> tuple[np.ndarray, float]:
     """Forward kinematics of the sway ``rot (F, N, 3)`` about ``rest (N, 3)`` metres, with the
     rotations scaled down by one factor for the tree (bisection, 6 steps) where the sway would carry
@@ -441,7 +461,9 @@ def grow_tree(model: SpeciesModel, envelope: Envelope, params: GrowParams | None
     report(progress, "animating", 0.85)
     phase = None if p.tree_phase is None else np.asarray(p.tree_phase, float)
     rot = sample_rotations(model, g.parents, rest, n_frames, fps, rng_sway, p.time_offset_s, phase)
-    # the species' own sway (wind 1) is kept inside the envelope; the wind then scales it (×2 is ×2)
+    # the species' own sway (wind 1) sways as far as its source did and stays inside the envelope;
+    # the wind then scales it (×2 is ×2)
+    rot = rot * match_excursion(g.parents, rest, rot, model.sway_excursion)
     unit, sway_scale = contain_sway(g.parents, rest, rot, region)
     if np.all(gains == 1.0):
         nodes3d = unit

@@ -77,7 +77,9 @@ class SpeciesModel:
     ``source_height_m``; ``fps`` and ``n_frames`` of the source; ``conifer``; ``mu_deg`` mean
     branching angle of the source lift; ``fallbacks`` notes from degenerate fits; ``leaves`` the
     source's foliage (median leaf colour sRGB, cluster radius / height, cards per cluster,
-    clusters per thin-branch node) or None for a bare source."""
+    clusters per thin-branch node) or None for a bare source; ``sway_excursion`` how far the source's
+    nodes sway (:func:`sway_excursion`, a share of the height; None in files fitted before it was
+    measured), which generated trees are scaled to at wind 1."""
 
     name: str
     angles: np.ndarray
@@ -99,6 +101,7 @@ class SpeciesModel:
     version: int = VERSION
     fallbacks: list = field(default_factory=list)
     leaves: dict | None = None      # {"colour": sRGB (3,), "radius_frac", "cards", "per_node"} or None
+    sway_excursion: float | None = None   # the source's sway (:func:`sway_excursion`); None: not measured
 
     def to_json(self) -> dict:
         """JSON-able dict (rounded, human-readable)."""
@@ -121,7 +124,8 @@ class SpeciesModel:
                                  "log_rms": arr(m.log_rms), "phase_spread": round(float(m.phase_spread), 5)}
                        for a, m in enumerate(self.motion)},
             "source": {"height_m": round(float(self.source_height_m), 4), "fps": float(self.fps),
-                       "n_frames": int(self.n_frames)},
+                       "n_frames": int(self.n_frames),
+                       **({} if self.sway_excursion is None else {"sway_excursion": round(float(self.sway_excursion), 6)})},
             "fallbacks": list(self.fallbacks),
             **({"leaves": {"colour": arr(self.leaves["colour"], 4),
                            "radius_frac": round(float(self.leaves["radius_frac"]), 5),
@@ -167,7 +171,8 @@ class SpeciesModel:
                         _orientation(sh["orientation_deg"]), float(np.clip(float(sh["mirror_p"]), 0.0, 1.0)),
                         float(src["height_m"]), float(src["fps"]),
                         int(src["n_frames"]), bool(d.get("conifer", False)), float(sh.get("mu_deg", 38.0)),
-                        ver, list(d.get("fallbacks", [])), _leaf_info(d.get("leaves")))
+                        ver, list(d.get("fallbacks", [])), _leaf_info(d.get("leaves")),
+                        None if src.get("sway_excursion") is None else float(src["sway_excursion"]))
         except (KeyError, TypeError, ValueError) as exc:
             raise InputError(f"{where} is incomplete or damaged ({exc.__class__.__name__}: {exc}); "
                              "fit the species again or pick another file") from None
@@ -256,6 +261,17 @@ def _orientation_stats(g: np.ndarray) -> tuple[float, float]:
     return (float(g.mean()), float(max(g.std(), 10.0)))
 
 
+def sway_excursion(nodes3d: np.ndarray, height: float) -> float:
+    """How far a tree's nodes sway: the 95th percentile over nodes of the largest distance
+    (over the frames) from the node's mean position, as a share of ``height``. ``nodes3d (F, N, 3)``
+    metres. From the mean, not from frame 0, so a clip that starts mid-swing counts the same."""
+    X = np.asarray(nodes3d, np.float64)
+    if X.shape[0] < 2 or X.shape[1] == 0:
+        return 0.0
+    d = np.linalg.norm(X - X.mean(0, keepdims=True), axis=-1).max(0)
+    return float(np.percentile(d, 95) / max(height, 1e-9))
+
+
 def fit_species(tree, name: str, keep: float = KEEP_FRACTION) -> SpeciesModel:
     """Fit a :class:`SpeciesModel` to a :class:`~.tree3d.Tree3D` (metres, frame 0 = rest).
 
@@ -304,7 +320,8 @@ def fit_species(tree, name: str, keep: float = KEEP_FRACTION) -> SpeciesModel:
         orientation_deg=_orientation_stats(branch_orientations(parents, nodes[0])),
         mirror_p=float(np.mean(feats.mirrored)), source_height_m=height, fps=float(tree.fps),
         n_frames=int(nodes.shape[0]), conifer=bool(tree.meta.get("conifer", False)),
-        mu_deg=float(tree.meta.get("mu_deg", 38.0)), fallbacks=fallbacks, leaves=leaf_info(tree))
+        mu_deg=float(tree.meta.get("mu_deg", 38.0)), fallbacks=fallbacks, leaves=leaf_info(tree),
+        sway_excursion=sway_excursion(nodes, height))
 
 
 # ============================================================================ files
