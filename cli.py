@@ -322,7 +322,7 @@ def _reconstruct(args, gen) -> int:
                               report=lambda m: sys.stderr.write(m + "\n"))
     conf = res.skeleton.confidence
     sure = "" if conf is None else f", {node_motion.confidence_summary(conf)}"
-    sys.stderr.write(f"done: {res.skeleton.n_nodes} nodes, {res.tracks.points.shape[1]} tracks, "
+    sys.stderr.write(f"done: {res.skeleton.n_nodes} nodes, {res.tracks.n_tracks} tracks, "
                      f"{res.tracks.n_frames} frames{sure} -> {args.out}\n")
     if gen is not None:
         return _generate_from_tree(args, gen, tree, name, outputs, wanted)

@@ -54,7 +54,7 @@ def main() -> None:
         t = time.perf_counter()
         trace.traced_skeleton(tracks, hier, outline, maps)
         t_traced = time.perf_counter() - t
-    print(f"video: {info.width}x{info.height}, {n} frames, {tracks.points.shape[1]} tracks")
+    print(f"video: {info.width}x{info.height}, {n} frames, {tracks.n_tracks} tracks")
     print(f"{'stage':<22}{'seconds':>9}")
     for name, v in (("decode only", decode), ("tracking (+decode)", t_track), ("hierarchy", t_hier),
                     ("skeleton paper", t_paper), ("skeleton traced", t_traced)):

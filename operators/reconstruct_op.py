@@ -212,7 +212,7 @@ class TREE_OT_preview(jobs.JobOperator, bpy.types.Operator):
         for w in result.warnings:
             self.report({"WARNING"}, w)
         where = "in the Movie Clip editor" if area is not None else f"over clip '{clip.name}' in the Movie Clip editor"
-        self.report({"INFO"}, f"{result.tracks.points.shape[1]} tracks, {result.skeleton.n_nodes} nodes {where}; "
+        self.report({"INFO"}, f"{result.tracks.n_tracks} tracks, {result.skeleton.n_nodes} nodes {where}; "
                               f"{motion_summary(result)}")
         jobs.redraw(context, "CLIP_EDITOR")
         return {"FINISHED"}

@@ -109,6 +109,69 @@ def test_late_track_is_matched_where_it_was_born_not_through_its_reference():
     assert m.nodes[-1, 1] == pytest.approx([20.0, F - 1 - 5], abs=1e-4)  # B: still, then track 2's +y
 
 
+def test_a_column_holding_two_tracks_moves_each_node_by_its_own():
+    """Once every column is used a new track takes a lost late track's column (Tracks' docstring):
+    the column's second track, born by node B, moves B, and no longer A, by whose first track it
+    stood (A then follows the crown: three still tracks far from both)."""
+    F = 12
+    pts = np.zeros((F, 4, 2))
+    valid = np.zeros((F, 4), bool)
+    pts[:, :3] = [[50.0, 50.0], [55.0, 50.0], [50.0, 55.0]]               # the still crown
+    valid[:, :3] = True
+    pts[:4, 3] = np.stack([np.arange(4) * 1.0, np.zeros(4)], 1)          # by A, +x, lost after frame 3
+    valid[:4, 3] = True
+    pts[6:, 3] = np.stack([np.full(F - 6, 100.0), np.arange(F - 6) * 1.0], 1)  # then by B from 6, +y
+    valid[6:, 3] = True
+    nodes = np.array([[0.0, 0.0], [100.0, 0.0]])
+    tr = _hand_tracks(pts, valid)
+    m = nm.follow_tracks(nodes, tr, scale=2.0)
+    assert m.nodes[3, 0] == pytest.approx([3.0, 0.0], abs=1e-4)          # A followed the first track
+    assert m.nodes[-1, 0] == pytest.approx([3.0, 0.0], abs=1e-4)         # … then the still crown
+    assert m.nodes[-1, 1] == pytest.approx([100.0, F - 1 - 6], abs=1e-4)  # B: the second track's +y
+    assert (m.confidence[7:, 0] == 0).all() and (m.confidence[7:, 1] > 0.3).all()
+    assert tr.last_span()[:, 3].tolist() == [False] * 6 + [True] * (F - 6)
+
+
+def test_a_full_tracker_reuses_lost_late_columns_and_keeps_the_crown_tracked():
+    """The left half of the crown turns its leaves every 5 frames (its tracks die, refills replace
+    them: ~500 new tracks every 5 frames); with room for 600 late tracks the tracker reuses their
+    columns once they are lost: the array stays 600 columns wider than frame 1's, frame 1's tracks
+    keep theirs, the left half is still tracked at the end, and each reused column's last track
+    knows its frame-1 reference."""
+    F = 60
+    t = np.arange(F)
+    offsets = np.stack([3.0 * np.sin(2 * np.pi * t / 24), 1.5 * np.sin(2 * np.pi * t / 17)], 1)
+    base = texture(1)
+    frames = []
+    for k, (dx, dy) in enumerate(offsets):
+        f = base.copy()
+        f[:, :160] = texture(300 + k // 5)[:, :160]
+        frames.append(shifted(f, dx, dy))
+    first = _track(frames[:1] * 2)
+    n0 = len(first.initial())
+    tracks = _track(frames, max_tracks=n0 + 600)
+    P = tracks.points.shape[1]
+    assert P == n0 + 600
+    born = tracks.valid.copy()
+    born[1:] &= ~tracks.valid[:-1]
+    assert (born[:, :n0].sum(0) == tracks.valid[0, :n0]).all()          # frame 1's columns: one track
+    reused = np.flatnonzero(born[:, n0:].sum(0) > 1) + n0
+    assert len(reused) >= 100 and born.sum() > P + 600
+    left = tracks.points[-1, :, 0] < 150
+    n_left0 = int((tracks.valid[0] & (tracks.points[0, :, 0] < 150)).sum())
+    assert (tracks.valid[-1] & left).sum() >= 0.3 * n_left0
+    # the last track of a reused column that is alive at the end: frame-1 row = where it was born
+    # minus the crown's displacement then
+    alive = reused[tracks.valid[-1, reused]]
+    span = tracks.last_span()
+    b = np.argmax(span[:, alive], axis=0)
+    err = np.linalg.norm(tracks.points[0, alive] - (tracks.points[b, alive] - offsets[b]), axis=1)
+    assert len(alive) >= 5 and np.median(err) < 0.3
+    # and no step joins two tracks: a reused column is invalid in the frame before each birth
+    k, c = np.nonzero(born[1:, n0:])
+    assert not tracks.valid[k, c + n0].any()
+
+
 def test_confidence_is_one_minus_exp_of_half_the_weights_followed():
     F = 4
     pts = np.zeros((F, 2, 2))

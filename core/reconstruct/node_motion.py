@@ -4,8 +4,9 @@ Per frame, a node's step is the weighted mean of the steps of the tracks valid i
 weights ``w = exp(−d² / 2s²)`` on the distance d between node and track *where the track was born*
 (frame 1 for the first corners, the frame of its detection for the re-detected ones, measured
 against the node's position in that frame: a late track is never matched through an estimated
-frame-1 position). Where no track within 3s is valid, a wider neighbourhood (4s) is used, and where
-none of those either, the crown's median step: a node never freezes because its own tracks died.
+frame-1 position; a column that holds a new track forgets its last one's weights). Where no
+track within 3s is valid, a wider neighbourhood (4s) is used, and where none of those either, the
+crown's median step: a node never freezes because its own tracks died.
 The steps are summed over frames (chained).
 
 The motion confidence of a node in a frame is ``1 − exp(−n / 2)`` with n the summed weight of the
@@ -83,20 +84,27 @@ def follow_tracks(nodes0: np.ndarray, tracks: Tracks, scale: float,
     if P == 0 or F < 2 or N == 0:
         return NodeMotion(out.astype(np.float32), conf)
     valid = tracks.valid
-    seen = valid.any(0)
-    birth = np.where(seen, np.argmax(valid, axis=0), F)
+    born = valid.copy()                      # (F, P): a track starts there (a column may hold several
+    born[1:] &= ~valid[:-1]                  # late tracks one after another, Tracks' docstring)
     steps = (tracks.points[1:] - tracks.points[:-1]).astype(np.float64)      # (F-1, P, 2)
     both = (valid[1:] & valid[:-1])                                          # (F-1, P)
     steps[~both] = 0.0
     bw = both.astype(np.float64)
-    starts = np.unique(birth[birth < F - 1])
+    starts = np.flatnonzero(born[:-1].any(1))
     ends = np.append(starts[1:], F - 1)
     W1 = sp.csr_matrix((N, P))
     W2 = sp.csr_matrix((N, P))
     X = out[0].copy()
+    seen = np.zeros(P, bool)
     for a, b in zip(starts, ends):
-        cols = np.flatnonzero(birth == a)
+        cols = np.flatnonzero(born[a])
         pts = tracks.points[a, cols].astype(np.float64)
+        again = cols[seen[cols]]
+        if len(again):                       # a column's new track: its last one's pairs go
+            keep = np.ones(P)
+            keep[again] = 0.0
+            W1, W2 = (sp.csr_matrix(W.multiply(keep[None, :])) for W in (W1, W2))
+        seen[cols] = True
         W1 = W1 + _pairs(X, pts, cols, scale, P)
         W2 = W2 + _pairs(X, pts, cols, WIDE * scale, P)
         T = b - a

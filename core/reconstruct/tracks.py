@@ -48,7 +48,9 @@ class TrackParams:
     redetect_every: int = 4       # frames between checks for thinned tracks (0: never re-detect)
     redetect_below: float = 0.6   # a grid cell over the crown is refilled when its live tracks fall
                                   # below this share of its frame-1 count
-    max_tracks: int = 12000       # cap on all tracks ever started (memory: F x this x 9 bytes)
+    max_tracks: int = 12000       # columns of the track arrays (memory: F x this x 9 bytes); once
+                                  # they are all used, a new track takes the column of a late track
+                                  # already lost (a 1080p clip in wind reaches 12000 in ~12 s)
 
 
 @dataclass
@@ -62,6 +64,11 @@ class Tracks:
     0..255 at each corner where it was first seen;
     ``fps`` frames per second; ``start`` first frame index of the range; ``size`` (width, height);
     ``times (F,)`` seconds from the first frame (the frames' timestamps; None: ``index / fps``).
+
+    A column holds one track, or, once :attr:`TrackParams.max_tracks` columns exist, several late
+    tracks one after another: each run of valid frames is one track, born where it starts (with
+    at least one invalid frame between two; row 0 is the last one's reference). Frame 1's tracks
+    (:meth:`initial`) always have a column to themselves.
     """
 
     points: np.ndarray
@@ -78,25 +85,42 @@ class Tracks:
     def n_frames(self) -> int:
         return self.points.shape[0]
 
+    @property
+    def n_tracks(self) -> int:
+        """Tracks started over the clip (a column may hold several, one after another)."""
+        if self.valid.size == 0:
+            return 0
+        return int(self.valid[0].sum() + (self.valid[1:] & ~self.valid[:-1]).sum())
+
     def initial(self) -> np.ndarray:
         """Indices of the tracks detected in frame 1 (the hierarchy and the skeleton's geometry
         are built on them; later tracks only add motion)."""
         return np.flatnonzero(self.valid[0])
 
     def displacement(self) -> np.ndarray:
-        """``(F, P, 2)`` pixels moved since frame 1, NaN where invalid."""
+        """``(F, P, 2)`` pixels moved since frame 1, NaN where invalid (a column's earlier tracks
+        too: row 0 is its last track's reference)."""
         d = self.points - self.points[:1]
-        return np.where(self.valid[..., None], d, np.nan)
+        return np.where(self.last_span()[..., None], d, np.nan)
+
+    def last_span(self) -> np.ndarray:
+        """``(F, P)`` bool: the frames of each column's last track (``valid`` where a column held
+        one track)."""
+        starts = self.valid.copy()
+        starts[1:] &= ~self.valid[:-1]
+        F = len(starts)
+        last = F - 1 - np.argmax(starts[::-1], axis=0)          # the last start (F - 1: none)
+        return self.valid & (np.arange(F)[:, None] >= last[None, :])
 
     def track_sway(self) -> np.ndarray:
-        """``(P,)`` px: each track's sway, the std of its displacement over the frames it is valid
-        (NaN for tracks valid in fewer than 3 frames)."""
+        """``(P,)`` px: each column's last track's sway, the std of its displacement over the frames
+        it is valid (NaN for tracks valid in fewer than 3 frames)."""
         d = self.displacement()
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)
             s = np.nanstd(d, axis=0)
         s = np.sqrt(np.nansum(s ** 2, axis=-1))
-        return np.where(self.valid.sum(0) >= 3, s, np.nan)
+        return np.where(self.last_span().sum(0) >= 3, s, np.nan)
 
     def sway_px(self) -> float:
         """Typical sway: median over tracks of the std of their displacement (pixels)."""
@@ -256,6 +280,8 @@ class Tracker:
         self.intensity = self._sample(full, pts)
         self.cam = CameraEstimator(gray, mask, self.params) if self.params.stabilize else None
         self.alive = np.ones(len(pts), bool)
+        self.n_initial = len(pts)                    # frame 1's tracks: columns never reused
+        self.recycled = 0                            # tracks that took a lost track's column
         self._live_neighbours()
         self.step = np.full((len(pts), 2), np.nan, np.float32)   # last stabilized step, px
         self.jerk = np.zeros(len(pts), np.float32)               # running mean |Δ step|, px
@@ -374,12 +400,23 @@ class Tracker:
         if every > 0 and (len(self.points) - 1) % every == 0:
             self._refill(raw_gray, full, cam)
 
+    def _free_columns(self) -> np.ndarray:
+        """Columns a new track may take once ``max_tracks`` columns exist: those of tracks born after
+        frame 1 and lost before the previous frame (so no step joins two tracks; frame 1's tracks,
+        which the hierarchy reads whole, are never reused); none while there is room."""
+        if len(self.raw) < self.params.max_tracks or len(self.valid) < 2:
+            return np.zeros(0, int)
+        before = self.valid[-2]
+        late = np.arange(len(before)) >= self.n_initial
+        return np.flatnonzero(late & ~before)
+
     def _refill(self, gray: np.ndarray, full: np.ndarray, cam: np.ndarray) -> None:
         """Detect new corners where the live tracks have thinned (grid cells over the crown below
         ``redetect_below`` of their frame-1 count), away from live tracks, inside the outline
         moved with the crown; they are born in the current frame."""
         prm = self.params
-        room = prm.max_tracks - len(self.raw)
+        free = self._free_columns()
+        room = prm.max_tracks - len(self.raw) + len(free)
         if room <= 0:
             return
         stab = self.points[-1]
@@ -425,6 +462,23 @@ class Tracker:
         disp = np.where(alive_now[nb][..., None], (stab - self.ref)[nb], np.nan)
         est = nan_median_rows(disp)
         ref = (st - np.nan_to_num(est)).astype(np.float32)
+        grow = max(0, len(raw) - len(free)) if len(self.raw) >= prm.max_tracks else len(raw)
+        reuse = len(raw) - grow
+        if reuse:                                       # the cap is reached: lost late tracks' columns
+            cols, raw_r = free[:reuse], raw[:reuse]
+            self.raw[cols], self.ref[cols] = raw_r, ref[:reuse]
+            stab[cols] = st[:reuse]
+            self.valid[-1][cols] = True
+            self.resid[-1][cols] = 0.0
+            self.alive[cols] = True
+            self.step[cols] = np.nan
+            self.jerk[cols] = 0.0
+            self.intensity[cols] = self._sample(full, raw_r / self.s)
+            self.recycled += reuse
+            raw, ref, st = raw[reuse:], ref[reuse:], st[reuse:]
+        if not len(raw):
+            self._live_neighbours()
+            return
         m = len(raw)
         self.raw = np.vstack([self.raw, raw])
         self.ref = np.vstack([self.ref, ref])
