@@ -113,7 +113,7 @@ class TreeVideoSettings(bpy.types.PropertyGroup):
                                                   "longer (paper: L candidates)")
     solver: bpy.props.EnumProperty(
         name="Motion Solver", **_core("solver"),
-        items=[("probabilistic", "Probabilistic", "Track × shape × prior per frame, root to leaf (paper §4)"),
+        items=[("probabilistic", "Probabilistic", "Track × shape × prior per frame, all rotations at once (paper §4)"),
                ("deterministic", "Deterministic", "Sphere about the parent joint ∩ line of sight (baseline)")],
         description="How the 3D motion is solved from the tracked 2D skeleton")
     show_advanced: bpy.props.BoolProperty(name="Advanced", default=False,

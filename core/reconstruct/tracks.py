@@ -3,11 +3,12 @@
 The tracker is fed one frame at a time (the pipeline streams the video once). Global camera
 motion is estimated from features *outside* the outline and removed, so every position in
 :class:`Tracks` is in frame-1 pixel coordinates. Lost points stay in the arrays and are marked
-invalid (never silently dropped); once lost, a track stays invalid. Where the live tracks have
+invalid (never silently dropped); once lost, a track stays lost. Where the live tracks have
 thinned (leaf flutter, flicker and occluders kill them within seconds in real wind), new corners are
 detected every few frames: each track has its own span (``valid`` is False before its birth), and
 a track born late has, as its frame-1 row, an estimated reference: where it is now minus the
 displacement of the live tracks around it, so displacements stay comparable across tracks.
+Once :attr:`TrackParams.max_tracks` columns exist, new tracks take the columns of lost late tracks.
 """
 from __future__ import annotations
 
