@@ -41,7 +41,10 @@ class AxisMotion:
     (which frequencies dominate); ``real`` / ``imag`` Dirichlet α ``(K+1,)`` of the shifted
     real/imaginary tuples (the phases between the bins); ``freqs_hz (K,)`` of the kept bins;
     ``log_rms = (a, b, σ)``: ``log rms ~ N(a + b·ρ, σ²)`` (rms radians, ρ the node's normalized
-    depth); ``phase_spread`` radians (circular std of the node phases at the dominant bin)."""
+    depth); ``phase_spread`` radians (circular std of the node phases at the dominant bin);
+    ``rms_max`` radians, the largest per-bone rms of the source (a sampled bone never sways more:
+    the log-normal's tail, extrapolated along a steep depth slope, reached 0.87 rad where the
+    source's bones reach 0.085); None in files fitted before it was kept."""
 
     energy: np.ndarray
     real: np.ndarray
@@ -50,6 +53,7 @@ class AxisMotion:
     log_rms: tuple
     phase_spread: float
     fallback: str | None = None
+    rms_max: float | None = None
 
     @property
     def dominant_hz(self) -> float:
@@ -121,7 +125,8 @@ class SpeciesModel:
                       "n_bifurcations": int(self.n_bifurcations), "mu_deg": round(float(self.mu_deg), 3)},
             "motion": {AXES[a]: {"freqs_hz": arr(m.freqs_hz, 5), "energy_alpha": arr(m.energy),
                                  "real_alpha": arr(m.real), "imag_alpha": arr(m.imag),
-                                 "log_rms": arr(m.log_rms), "phase_spread": round(float(m.phase_spread), 5)}
+                                 "log_rms": arr(m.log_rms), "phase_spread": round(float(m.phase_spread), 5),
+                                 **({} if m.rms_max is None else {"rms_max": float(f"{m.rms_max:.6g}")})}
                        for a, m in enumerate(self.motion)},
             "source": {"height_m": round(float(self.source_height_m), 4), "fps": float(self.fps),
                        "n_frames": int(self.n_frames),
@@ -163,7 +168,10 @@ class SpeciesModel:
                 lr = tuple(float(x) for x in m["log_rms"])
                 if len(lr) != 3 or not all(math.isfinite(x) for x in lr) or not np.all(freqs > 0):
                     raise ValueError("log_rms must be three numbers and frequencies positive")
-                motion.append(AxisMotion(energy, real, imag, freqs, lr, float(m["phase_spread"])))
+                rms_max = None if m.get("rms_max") is None else float(m["rms_max"])
+                if rms_max is not None and not (math.isfinite(rms_max) and rms_max > 0):
+                    raise ValueError("rms_max must be a positive number")
+                motion.append(AxisMotion(energy, real, imag, freqs, lr, float(m["phase_spread"]), rms_max=rms_max))
             model = cls(str(d.get("name", "species")), alpha(sh["angle_alpha"], 3), alpha(sh["length_alpha"], 3),
                         motion, float(sh["trunk_frac"]), float(sh["segment_frac"]),
                         float(sh["segments_per_branch"]), float(sh["min_branch_frac"]),
@@ -251,7 +259,7 @@ def fit_axis_motion(sf: SpectralFeatures) -> AxisMotion:
     fr, fi = fit_dirichlet(shift_tuple(sf.u)), fit_dirichlet(shift_tuple(sf.v))
     notes = [f"{n}: {f.fallback}" for n, f in (("energy", fe), ("real", fr), ("imag", fi)) if f.fallback]
     return AxisMotion(fe.alpha, fr.alpha, fi.alpha, sf.freqs_hz, _fit_log_rms(sf.rms, sf.rho), sf.phase_spread,
-                      "; ".join(notes) or None)
+                      "; ".join(notes) or None, float(sf.rms.max()))
 
 
 def _orientation_stats(g: np.ndarray) -> tuple[float, float]:

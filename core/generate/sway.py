@@ -5,7 +5,7 @@ Per node ``i`` and rotation axis ``a`` (world x, y, z; radians, relative to the 
     e ~ Dir(α_energy)            energy ratios over the K kept frequencies f_k (Hz)
     u, v from Dir(α_real), Dir(α_imag), the shift removed: u_k = (K+1) z_k − 1   (features.unshift_tuple)
     ψ_k = atan2(v_k, u_k)        phase of bin k relative to the node's dominant bin
-    rms ~ exp(N(a + b ρ_i, σ²))  (ρ normalized depth; clipped to ±2.5 σ)
+    rms ~ exp(N(a + b ρ_i, σ²))  (ρ normalized depth; clipped to ±2.5 σ and to the source's largest)
     φ_i = Φ_a + N(0, spread²)    node phase: one tree phase per axis plus the example's spread
     ω_a(t) = Σ_k √2 · rms · √e_k · cos(2π f_k (t + t0) + ψ_k + φ_i)
 
@@ -38,6 +38,8 @@ def sample_axis(m: AxisMotion, rho: np.ndarray, t: np.ndarray, rng: np.random.Ge
     psi = np.arctan2(v, u)                                       # (M, K)
     a, b, sig = m.log_rms
     rms = np.exp(a + b * rho + sig * np.clip(rng.standard_normal(M), -2.5, 2.5))
+    if m.rms_max is not None:                                    # never beyond the source's bones
+        rms = np.minimum(rms, m.rms_max)
     phi = tree_phase + m.phase_spread * rng.standard_normal(M)
     amp = np.sqrt(2.0) * rms[:, None] * np.sqrt(e)               # (M, K)
     theta = psi + phi[:, None]
