@@ -143,6 +143,9 @@ def test_preview_keeps_tracks_and_skeleton_for_the_clip_editor(addon):
     assert len(nodes) == len(conf) == kept["nodes"].shape[1] and np.all(kept["confidence"][0] == 1.0)
     assert ((conf >= 0) & (conf <= 1)).all() and conf[0] == 1.0 and np.mean(conf >= 0.5) > 0.9   # the base is fixed
     assert clip_overlay.frame_confidence(VIDEO, 10) is None
+    # only live tracks are kept (8 bytes each): frame t's are rows track_start[t]..track_start[t + 1]
+    assert "tracks" not in kept and kept["track_start"][-1] == len(kept["track_xy"])
+    assert kept["track_start"][1] - kept["track_start"][0] == len(pts) and len(kept["track_start"]) == 31
     assert addon.motion_measured == pytest.approx(1 - np.mean(kept["confidence"][1:] < 0.5), abs=1e-6)
     tree_from_video.unregister()
     assert not clip_overlay._decoded                              # cleared with the add-on
@@ -184,3 +187,23 @@ def test_export_buttons_write_the_tree_and_refuse_bad_targets(addon, tmp_path):
     except RuntimeError:
         result = {"CANCELLED"}
     assert result == {"CANCELLED"} and blocker.read_text() == "x"
+
+
+def test_an_overlay_kept_in_the_dense_format_of_older_files_still_draws():
+    """Files saved before kept every track's position every frame, NaN where not live."""
+    import io
+
+    from tree_from_video.operators.scene import clip_overlay
+    F, P = 3, 4
+    tracks = np.full((F, P, 2), np.nan, np.float32)
+    tracks[1, 1:3] = [[48.0, 36.0], [96.0, 72.0]]
+    buf = io.BytesIO()
+    np.savez(buf, size=np.array([480.0, 360.0]), scale=np.float64(1.0), start=np.int64(0), tracks=tracks,
+             nodes=np.zeros((F, 2, 2), np.float32), edges=np.array([[0, 1]], np.int32))
+    old = os.path.abspath("/tmp/an_old_clip.mp4")
+    bpy.context.scene[clip_overlay.KEY] = {"video": old, "made": time.time(), "npz": buf.getvalue()}
+    pts, seg = clip_overlay.frame_geometry(old, 2)                    # clip frame 2 = row 1
+    assert pts == pytest.approx(np.array([[0.1, 0.9], [0.2, 0.8]]))
+    assert len(clip_overlay.frame_geometry(old, 1)[0]) == 0
+    del bpy.context.scene[clip_overlay.KEY]
+    clip_overlay.clear()

@@ -32,19 +32,35 @@ def _norm(path: str) -> str:
 
 
 def overlay_arrays(res) -> dict:
-    """What to draw from a pipeline result: ``tracks (F, P, 2)`` and ``nodes (F, N, 2)`` float32
-    pixels of the video at processing ``scale`` (NaN: a track not valid in that frame), skeleton
-    ``edges (E, 2)``, frame ``size`` (w, h) of the full video, ``scale`` and first frame ``start``."""
+    """What to draw from a pipeline result: the live tracks of every frame, ``track_xy (V, 2)``
+    float32 pixels of the video at processing ``scale``, frame t's being rows ``track_start[t]``
+    to ``track_start[t + 1]`` (``(F + 1,)``: only live tracks are kept, 8 bytes each — a dense
+    (F, P, 2) array of every column was 96 KB a frame for a 1080p clip's 12,000 columns), and
+    ``nodes (F, N, 2)``, skeleton ``edges (E, 2)``, frame ``size`` (w, h) of the full video,
+    ``scale``, first frame ``start`` and the nodes' ``confidence (F, N)``."""
     from ...core.reconstruct.overlay import to_image
     tr, sk = res.tracks, res.skeleton
-    pts = np.stack([to_image(tr.points[t].astype(np.float64), tr.camera[t]) for t in range(tr.n_frames)])
-    pts[~np.asarray(tr.valid, bool)] = np.nan
+    valid = np.asarray(tr.valid, bool)
+    xy = [to_image(tr.points[t][valid[t]].astype(np.float64), tr.camera[t]) for t in range(tr.n_frames)]
+    start = np.concatenate([[0], np.cumsum([len(p) for p in xy])]).astype(np.int64)
     nodes = np.stack([to_image(sk.nodes2d[t].astype(np.float64), tr.camera[t]) for t in range(tr.n_frames)])
     conf = sk.confidence if sk.confidence is not None else np.ones(sk.nodes2d.shape[:2], np.float32)
     return dict(size=np.array([res.info.width / res.info.scale, res.info.height / res.info.scale], np.float64),
-                scale=np.float64(res.info.scale), start=np.int64(res.start), tracks=pts.astype(np.float32),
+                scale=np.float64(res.info.scale), start=np.int64(res.start),
+                track_xy=np.concatenate(xy).astype(np.float32).reshape(-1, 2), track_start=start,
                 nodes=nodes.astype(np.float32), edges=np.asarray(sk.edges(), np.int32),
                 confidence=np.asarray(conf, np.float32))
+
+
+def frame_tracks(data: dict, t: int) -> np.ndarray:
+    """Row ``t``'s live track points ``(P_t, 2)`` of overlay arrays, whether kept as
+    :func:`overlay_arrays` keeps them or, in files saved before, as a dense ``tracks (F, P, 2)``
+    with NaN for the tracks not live."""
+    if "track_xy" in data:
+        a, b = data["track_start"][t], data["track_start"][t + 1]
+        return data["track_xy"][a:b]
+    tracks = data["tracks"][t]
+    return tracks[np.isfinite(tracks).all(axis=1)]
 
 
 def store(res, owner) -> None:
@@ -88,7 +104,7 @@ def _frame_data(clip_path: str, clip_frame: int):
         return None
     data = overlay_of(found[0])
     t = clip_frame - 1 - int(data["start"])
-    if not 0 <= t < len(data["tracks"]):
+    if not 0 <= t < len(data["nodes"]):
         return None
     w, h = data["size"]
     s = float(data["scale"])
@@ -118,8 +134,7 @@ def frame_geometry(clip_path: str, clip_frame: int):
     if got is None:
         return None
     data, t, norm = got
-    tracks = data["tracks"][t]
-    pts = norm(tracks[np.isfinite(tracks).all(axis=1)])
+    pts = norm(frame_tracks(data, t))
     seg = norm(data["nodes"][t][data["edges"].reshape(-1)])
     return pts, seg
 
