@@ -74,6 +74,16 @@ def chains(parents: np.ndarray, pos: np.ndarray, anchors: np.ndarray) -> Chains:
     return Chains(up, down, arc)
 
 
+def node_depths(parents: np.ndarray) -> np.ndarray:
+    """``(N,)`` edges from the root to each node."""
+    parents = np.asarray(parents)
+    d = np.zeros(len(parents), int)
+    for n in topological_order(parents):
+        if parents[n] >= 0:
+            d[n] = d[parents[n]] + 1
+    return d
+
+
 def branching_level(parents: np.ndarray) -> np.ndarray:
     """Branching order per node: 0 on the trunk, +1 below every node with two or more children."""
     ch = children_lists(parents)

@@ -42,6 +42,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..rotations import quat_log
+from ..topology import node_depths
 
 KEEP_FRACTION = 0.2              # lowest share of the frequency bins kept as "dominant"
 
@@ -152,17 +153,6 @@ def node_rotations(parents: np.ndarray, nodes3d: np.ndarray) -> np.ndarray:
     out = np.zeros(nodes3d.shape[:2] + (3,))
     out[:, bone_edges(parents)[:, 1]] = quat_log(local)
     return out
-
-
-def node_depths(parents: np.ndarray) -> np.ndarray:
-    """``(N,)`` edges from the root to each node."""
-    from ..topology import topological_order
-    parents = np.asarray(parents)
-    d = np.zeros(len(parents), int)
-    for n in topological_order(parents):
-        if parents[n] >= 0:
-            d[n] = d[parents[n]] + 1
-    return d
 
 
 def n_kept_bins(n_frames: int, keep: float = KEEP_FRACTION) -> int:

@@ -21,7 +21,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..rotations import quat_exp, quat_mul, quat_rotate
-from .features import node_depths, unshift_tuple
+from ..topology import node_depths
+from .features import unshift_tuple
 from .species import AxisMotion, SpeciesModel
 
 

@@ -39,7 +39,7 @@ import numpy as np
 
 from ..params import param
 from ..progress import ProgressFn, report
-from ..topology import chains, topological_order
+from ..topology import chains, node_depths
 from .rotation_solve import PENALTY, FrameTerms, TreeSystem, branch_angles, gauss_newton_step, turn
 
 SOLVERS = ("probabilistic", "deterministic")
@@ -74,11 +74,7 @@ class Motion:
 
 def _levels(parents: np.ndarray) -> list[np.ndarray]:
     """Nodes per tree depth (1, 2, …): what the deterministic solver places one after another."""
-    order = topological_order(parents)
-    depth = np.zeros(len(parents), int)
-    for n in order:
-        if parents[n] >= 0:
-            depth[n] = depth[parents[n]] + 1
+    depth = node_depths(parents)
     return [np.flatnonzero(depth == d) for d in range(1, int(depth.max(initial=0)) + 1)]
 
 

@@ -21,13 +21,14 @@ Every term of the posterior is then a function of one node or of one node and it
     shape   ½ (α_k − α_k(1) − ω_k · ∂α/∂ω)² / σ_shape(d_k)²          ∂α/∂ω = −(u × w) / sin α
     prior   ½ |ω_k|² / σ_prior²,   rest ½ |A_k + ω_k|² / σ_rest²
 
-so the normal equations are a symmetric positive definite matrix with the tree's sparsity: 6×6
-blocks on the diagonal and between each node and its parent. Ordered leaves first its LU factor
-has no fill-in (eliminating a node touches only its parent), one SuperLU call of ~0.4 ms for 185
-nodes. The subtree sums of the depth term come from one sparse product with the subtree matrix.
-Measured on the broad sample (185 nodes, 36 deep): the level-by-level solve it replaces took 13 ms
-a frame, this one 1.5 ms, with the same reprojection (median 0.13 % of the height against 0.19 %)
-and branch lengths exact (every edge is turned by a rotation matrix, never stretched).
+so the normal equations are a symmetric positive definite matrix with the tree's sparsity: 5×5
+blocks (δx's x and z, Ω: nothing reads δx's depth) on the diagonal and between each node and its
+parent. Ordered leaves first its LU factor has no fill-in (eliminating a node touches only its
+parent), one SuperLU call of ~0.4 ms for 185 nodes. The subtree sums of the depth term come from
+one sparse product with the subtree matrix. Measured on the broad sample (185 nodes, 36 deep):
+the level-by-level solve it replaces took 13 ms a frame, this one 1.5 ms, with the same
+reprojection (median 0.13 % of the height against 0.19 %) and branch lengths exact (every edge is
+turned by a rotation matrix, never stretched).
 """
 from __future__ import annotations
 
@@ -38,7 +39,7 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
 from ..rotations import rodrigues
-from ..topology import topological_order
+from ..topology import node_depths, topological_order
 
 BLOCK = 5           # unknowns per node: δx's x and z, Ω
 PENALTY = 1e6        # μ σ_track²: δx_k − δx_p = Ω_k × e_k holds to ~1e-6 of a track σ
@@ -88,12 +89,11 @@ class TreeSystem:
         par = parents[nodes]
         ppos = pos[par]
         kid = np.flatnonzero(ppos >= 0)
-        # root of every node and its depth below the root, root first
-        root = np.arange(N)
-        depth = np.zeros(N, int)
+        depth = node_depths(parents)
+        root = np.arange(N)                              # each node's root, root first
         for v in topo:
             if parents[v] >= 0:
-                root[v], depth[v] = root[parents[v]], depth[parents[v]] + 1
+                root[v] = root[parents[v]]
         # path sums: row j has a one at every non-root node of j's path (j included)
         rows = np.repeat(np.arange(N), depth)
         cols = np.empty(len(rows), int)
