@@ -84,8 +84,8 @@ def follow_tracks(nodes0: np.ndarray, tracks: Tracks, scale: float,
     if P == 0 or F < 2 or N == 0:
         return NodeMotion(out.astype(np.float32), conf)
     valid = tracks.valid
-    born = valid.copy()                      # (F, P): a track starts there (a column may hold several
-    born[1:] &= ~valid[:-1]                  # late tracks one after another, Tracks' docstring)
+    born = tracks.births()                   # (F, P): a column may hold several late tracks, one
+                                             # after another (Tracks' docstring)
     steps = (tracks.points[1:] - tracks.points[:-1]).astype(np.float64)      # (F-1, P, 2)
     both = (valid[1:] & valid[:-1])                                          # (F-1, P)
     steps[~both] = 0.0

@@ -89,9 +89,14 @@ class Tracks:
     @property
     def n_tracks(self) -> int:
         """Tracks started over the clip (a column may hold several, one after another)."""
-        if self.valid.size == 0:
-            return 0
-        return int(self.valid[0].sum() + (self.valid[1:] & ~self.valid[:-1]).sum())
+        return int(self.births().sum())
+
+    def births(self) -> np.ndarray:
+        """``(F, P)`` bool: a track starts in that frame and column (valid, and not in the frame
+        before)."""
+        born = self.valid.copy()
+        born[1:] &= ~self.valid[:-1]
+        return born
 
     def initial(self) -> np.ndarray:
         """Indices of the tracks detected in frame 1 (the hierarchy and the skeleton's geometry
@@ -107,8 +112,7 @@ class Tracks:
     def last_span(self) -> np.ndarray:
         """``(F, P)`` bool: the frames of each column's last track (``valid`` where a column held
         one track)."""
-        starts = self.valid.copy()
-        starts[1:] &= ~self.valid[:-1]
+        starts = self.births()
         F = len(starts)
         last = F - 1 - np.argmax(starts[::-1], axis=0)          # the last start (F - 1: none)
         return self.valid & (np.arange(F)[:, None] >= last[None, :])
@@ -282,7 +286,6 @@ class Tracker:
         self.cam = CameraEstimator(gray, mask, self.params) if self.params.stabilize else None
         self.alive = np.ones(len(pts), bool)
         self.n_initial = len(pts)                    # frame 1's tracks: columns never reused
-        self.recycled = 0                            # tracks that took a lost track's column
         self._live_neighbours()
         self.step = np.full((len(pts), 2), np.nan, np.float32)   # last stabilized step, px
         self.jerk = np.zeros(len(pts), np.float32)               # running mean |Δ step|, px
@@ -463,9 +466,8 @@ class Tracker:
         disp = np.where(alive_now[nb][..., None], (stab - self.ref)[nb], np.nan)
         est = nan_median_rows(disp)
         ref = (st - np.nan_to_num(est)).astype(np.float32)
-        grow = max(0, len(raw) - len(free)) if len(self.raw) >= prm.max_tracks else len(raw)
-        reuse = len(raw) - grow
-        if reuse:                                       # the cap is reached: lost late tracks' columns
+        reuse = min(len(raw), len(free))               # the cap is reached: lost late tracks' columns
+        if reuse:
             cols, raw_r = free[:reuse], raw[:reuse]
             self.raw[cols], self.ref[cols] = raw_r, ref[:reuse]
             stab[cols] = st[:reuse]
@@ -475,21 +477,18 @@ class Tracker:
             self.step[cols] = np.nan
             self.jerk[cols] = 0.0
             self.intensity[cols] = self._sample(full, raw_r / self.s)
-            self.recycled += reuse
             raw, ref, st = raw[reuse:], ref[reuse:], st[reuse:]
-        if not len(raw):
-            self._live_neighbours()
-            return
-        m = len(raw)
-        self.raw = np.vstack([self.raw, raw])
-        self.ref = np.vstack([self.ref, ref])
-        self.points[-1] = np.vstack([stab, st])
-        self.valid[-1] = np.concatenate([self.valid[-1], np.ones(m, bool)])
-        self.resid[-1] = np.concatenate([self.resid[-1], np.zeros(m, np.float32)])
-        self.alive = np.concatenate([self.alive, np.ones(m, bool)])
-        self.step = np.vstack([self.step, np.full((m, 2), np.nan, np.float32)])
-        self.jerk = np.concatenate([self.jerk, np.zeros(m, np.float32)])
-        self.intensity = np.concatenate([self.intensity, self._sample(full, raw / self.s)])
+        if len(raw):                                    # the rest in new columns
+            m = len(raw)
+            self.raw = np.vstack([self.raw, raw])
+            self.ref = np.vstack([self.ref, ref])
+            self.points[-1] = np.vstack([stab, st])
+            self.valid[-1] = np.concatenate([self.valid[-1], np.ones(m, bool)])
+            self.resid[-1] = np.concatenate([self.resid[-1], np.zeros(m, np.float32)])
+            self.alive = np.concatenate([self.alive, np.ones(m, bool)])
+            self.step = np.vstack([self.step, np.full((m, 2), np.nan, np.float32)])
+            self.jerk = np.concatenate([self.jerk, np.zeros(m, np.float32)])
+            self.intensity = np.concatenate([self.intensity, self._sample(full, raw / self.s)])
         self._live_neighbours()
 
     def _reject_jerks(self, stab: np.ndarray, dt: float = 1.0) -> None:
