@@ -49,7 +49,7 @@ from ..reconstruct.skeleton2d import Skeleton2D
 from ..topology import branching_level
 from ..tree3d import Tree3D, pipe_radii
 from .envelopes import Region2D, envelope_meta, region_of
-from .species import SpeciesModel
+from .species import SpeciesModel, sway_excursion
 from .sway import forward_kinematics, sample_rotations
 from .wind import audio_envelope, gain_curve
 
@@ -380,7 +380,6 @@ def match_excursion(parents: np.ndarray, rest: np.ndarray, rot: np.ndarray, targ
     kinematics is nearly linear in the factor at these angles), within [1/4, 4]."""
     if not target or target <= 0:
         return 1.0
-    from .species import sway_excursion
     H = float(max(rest[:, 2].max(), 1e-6))
     factor = 1.0
     for _ in range(2):
