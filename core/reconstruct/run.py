@@ -85,7 +85,7 @@ def track_video(info: VideoInfo, outline: Outline, start: int, stop: int, params
         raise InputError(f"video '{info.path}' has no frame {start}; check --frames")
     tracker = Tracker(first, outline, info.fps, start, params)
     if len(tracker.raw) < 8:
-        decoded.close()  # type: ignore[attr-defined]
+        decoded.close()
         raise InputError(f"only {len(tracker.raw)} trackable corners inside the outline; "
                          "outline the whole tree (leaves and trunk) in the first frame")
     acc = AppearanceAccumulator(first, outline)

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass
-from typing import Any, Callable, Iterator
+from typing import Any, Callable, Generator, Iterator
 
 import cv2
 import numpy as np
@@ -92,7 +92,7 @@ def _raw_frames(path: str) -> Iterator[np.ndarray]:
 
 
 def iter_frames(info: VideoInfo, start: int = 0, stop: int | None = None,
-                times: list | None = None) -> Iterator[np.ndarray]:
+                times: list | None = None) -> Generator[np.ndarray, None, None]:
     """Yield BGR frames ``start..stop-1`` (``(H, W, 3)`` uint8, scaled), one at a time; with
     ``times`` a list, append each frame's timestamp (seconds, the container's presentation time
     as the decoder reports it) as it is read."""
