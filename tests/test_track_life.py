@@ -109,6 +109,28 @@ def test_late_track_is_matched_where_it_was_born_not_through_its_reference():
     assert m.nodes[-1, 1] == pytest.approx([20.0, F - 1 - 5], abs=1e-4)  # B: still, then track 2's +y
 
 
+def test_a_node_is_anchored_at_its_tracks_births_and_does_not_keep_a_lost_tracks_error():
+    """eq. d_n(t) (node_motion's docstring) by hand: tracks 0 and 1 stand on the node; track 1 jumps
+    2 px in frame 1 (a leaf turning) and is lost after frame 3; track 2 is born on the node in frame
+    6. While track 1 lives the node is off by the mean, +1 px; once it is lost the node is exactly
+    track 0 again (a chain of mean steps kept the +1 for ever), and track 2 adds its move since its
+    birth to the node's displacement then."""
+    F = 10
+    x0 = np.array([0, 1, 2, 1, 0, 1, 2, 3, 2, 1], float)           # the node's true x
+    pts = np.zeros((F, 3, 2))
+    valid = np.zeros((F, 3), bool)
+    pts[:, 0, 0] = x0
+    valid[:, 0] = True
+    pts[:, 1, 0] = x0 + np.where(np.arange(F) >= 1, 2.0, 0.0)
+    valid[:4, 1] = True
+    pts[6:, 2] = np.stack([x0[6:] + 0.3, np.full(F - 6, 0.2)], 1)    # born 0.3 px right of the node
+    valid[6:, 2] = True
+    m = nm.follow_tracks(np.array([[0.0, 0.0]]), _hand_tracks(pts, valid), scale=2.0)
+    want = x0 + np.where((np.arange(F) >= 1) & (np.arange(F) <= 3), 1.0, 0.0)
+    assert m.nodes[:, 0, 0] == pytest.approx(want, abs=1e-5)
+    assert m.nodes[:, 0, 1] == pytest.approx(np.zeros(F), abs=1e-5)
+
+
 def test_a_column_holding_two_tracks_moves_each_node_by_its_own():
     """Once every column is used a new track takes a lost late track's column (Tracks' docstring):
     the column's second track, born by node B, moves B, and no longer A, by whose first track it
