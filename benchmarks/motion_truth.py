@@ -9,6 +9,8 @@ harness of issue 18 (motion that holds in real wind). One table per variant, a r
 - ``cam px``: the largest error of the estimated camera motion at the frame centre, i.e. on a tripod
   clip the largest translation the tracker invented;
 - ``barely``: whether the "the tree barely moves" warning fired;
+- ``conf``: the worst frame's share of nodes whose motion confidence is at least node_motion's
+  ``LOW_CONFIDENCE``; ``>=90%``: the share of frames where at least 90 % of the nodes are;
 - the real-footage reference (tests/motion_metrics.py ``flow_reference_correlation``): ``ref`` the
   median correlation node vs dense-flow reference over the 30 nodes whose reference moves most
   (``ref amp`` their std ratio), ``same`` the truth correlation of those same 30 nodes (each matched
@@ -42,6 +44,7 @@ load_package()
 sys.path.insert(0, os.path.join(ROOT, "tests"))
 
 from tree_from_video.core import pipeline  # noqa: E402
+from tree_from_video.core.reconstruct.node_motion import LOW_CONFIDENCE  # noqa: E402
 from tree_from_video.sample_videos import synth_tree as st  # noqa: E402
 
 from groundtruth import score  # noqa: E402
@@ -132,6 +135,10 @@ def measure(variant: str, seed: int, folder: str, frames: int | None = None, tra
     out["tripod"] = bool(np.abs(truth["camera_offset"]).max() == 0)
     out["camera_px"] = camera_error(res.tracks.camera, truth["camera_offset"].astype(np.float64), size)
     out["barely_moves"] = any("barely moves" in w for w in res.warnings)
+    conf = sk.confidence[1:] if sk.confidence is not None and len(sk.confidence) > 1 else np.ones((1, 1))
+    share = (conf >= LOW_CONFIDENCE).mean(axis=1)           # per frame: share of confident nodes
+    out["confident"] = {"worst_frame": float(share.min()), "median_frame": float(np.median(share)),
+                        "frames_ge_90": float((share >= 0.9).mean())}
     out["warnings"] = res.warnings
     # the real-footage reference: one flow pass, sampled at our nodes and at the true ones
     rows = min(n, sk.nodes2d.shape[0])
@@ -148,7 +155,7 @@ def measure(variant: str, seed: int, folder: str, frames: int | None = None, tra
 
 HEADER = (f"{'seed':>9} {'ch1/H':>6} {'cover':>5} | {'2D corr':>7} {'amp':>5} {'df Hz':>5} | {'3D corr':>7} {'amp':>5} "
           f"{'df Hz':>5} | {'tracks@10':>9} {'@30':>4} {'@60':>4} {'@last':>5} | {'cam px':>6} {'barely':>6} | "
-          f"{'ref':>5} {'refamp':>6} {'same':>5} {'ref@true':>8} | {'s':>5}")
+          f"{'ref':>5} {'refamp':>6} {'same':>5} {'ref@true':>8} | {'conf':>4} {'>=90%':>5} | {'s':>5}")
 
 
 def _f(x: float, fmt: str) -> str:
@@ -165,7 +172,8 @@ def row(r: dict) -> str:
             f"{_f(r['tip3d']['corr'], '7.2f')} {_f(r['tip3d']['amp'], '5.2f')} {_f(r['tip3d']['freq_err'], '5.2f')} | "
             f"{sv[0]:>9} {sv[1]:>4} {sv[2]:>4} {sv[3]:>5} | {cam:>6} {'yes' if r['barely_moves'] else 'no':>6} | "
             f"{_f(r['ref']['corr'], '5.2f')} {_f(r['ref']['amp'], '6.2f')} {_f(r['ref']['same_nodes_truth_corr'], '5.2f')} "
-            f"{_f(r['ref']['truth_corr'], '8.2f')} | {r['seconds_2d'] + r['seconds_3d']:5.1f}")
+            f"{_f(r['ref']['truth_corr'], '8.2f')} | {_f(r['confident']['worst_frame'], '4.2f')} "
+            f"{_f(100 * r['confident']['frames_ge_90'], '4.0f')}% | {r['seconds_2d'] + r['seconds_3d']:5.1f}")
 
 
 def main(argv: list[str] | None = None) -> int:

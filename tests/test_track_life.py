@@ -104,7 +104,7 @@ def test_late_track_is_matched_where_it_was_born_not_through_its_reference():
     pts[5:, 2] = np.stack([np.full(F - 5, 20.0), np.arange(F - 5) * 1.0], 1)   # its frame-1 row (0, 0)
     valid[5:, 2] = True                                                  # would put it by node A
     nodes = np.array([[0.0, 0.0], [20.0, 0.0]])
-    m = nm.follow_tracks(nodes, _hand_tracks(pts, valid), scale=2.0)
+    m = nm.follow_tracks(nodes, _hand_tracks(pts, valid), scale=2.0, k_nearest=0)
     assert m.nodes[-1, 0] == pytest.approx([F - 1, 0.0], abs=1e-4)      # A: track 0 only
     assert m.nodes[-1, 1] == pytest.approx([20.0, F - 1 - 5], abs=1e-4)  # B: still, then track 2's +y
 
@@ -146,7 +146,7 @@ def test_a_column_holding_two_tracks_moves_each_node_by_its_own():
     valid[6:, 3] = True
     nodes = np.array([[0.0, 0.0], [100.0, 0.0]])
     tr = _hand_tracks(pts, valid)
-    m = nm.follow_tracks(nodes, tr, scale=2.0)
+    m = nm.follow_tracks(nodes, tr, scale=2.0, k_nearest=0)
     assert m.nodes[3, 0] == pytest.approx([3.0, 0.0], abs=1e-4)          # A followed the first track
     assert m.nodes[-1, 0] == pytest.approx([3.0, 0.0], abs=1e-4)         # … then the still crown
     assert m.nodes[-1, 1] == pytest.approx([100.0, F - 1 - 6], abs=1e-4)  # B: the second track's +y
@@ -201,12 +201,24 @@ def test_confidence_is_one_minus_exp_of_half_the_weights_followed():
     valid = np.ones((F, 2), bool)
     valid[2:, 1] = False
     s = 2.0
-    m = nm.follow_tracks(np.array([[0.0, 0.0]]), _hand_tracks(pts, valid), scale=s)
+    m = nm.follow_tracks(np.array([[0.0, 0.0]]), _hand_tracks(pts, valid), scale=s, k_nearest=0)
     # frames 1: both tracks (weights 1 and exp(-9/8)); frames 2-3: only track 0 (weight 1)
     n1 = 1.0 + np.exp(-9.0 / (2 * s * s))
     assert m.confidence[0, 0] == 1.0
     assert m.confidence[1, 0] == pytest.approx(1 - np.exp(-n1 / 2), rel=1e-5)
     assert m.confidence[3, 0] == pytest.approx(1 - np.exp(-0.5), rel=1e-5)
+
+
+def test_a_node_in_sparse_corners_widens_its_scale_to_its_fifth_nearest_track():
+    """node_motion's docstring: the scale is the tree's, or the distance to the 5th nearest track of
+    frame 1 where corners are sparser, at most 4 × the tree's."""
+    pts = np.array([[0, 0], [1, 0], [0, 1], [1, 1], [-1, 0], [1, -1],         # dense, around node 0
+                    [20, 3], [20, -4], [25, 0], [26, 0], [30, 0]], float)     # sparse, node 1 at (20, 0)
+    s = nm.node_scales(np.array([[0.0, 0.0], [23.0, 0.0], [100.0, 0.0]]), pts, scale=2.0)
+    assert s[0] == pytest.approx(2.0)        # 5th nearest at 1.41 px: the tree's scale
+    assert s[1] == pytest.approx(7.0)        # 2, 3, 4.24, 5, then (30, 0) at 7 px
+    assert s[2] == pytest.approx(8.0)        # nothing near: 4 × the tree's
+    assert nm.node_scales(np.array([[23.0, 0.0]]), pts, scale=2.0, k=0)[0] == pytest.approx(2.0)
 
 
 def test_a_node_whose_tracks_all_die_follows_the_crown_and_says_it_is_unsure():
