@@ -65,7 +65,7 @@ def test_a_short_run_measures_everything(tmp_path, capsys):
     assert r["ref"]["n"] > 0 and -1 <= r["ref"]["corr"] <= 1 and -1 <= r["ref"]["truth_corr"] <= 1
     r["split"] = "dev"
     line = mt.row(r)
-    assert line.startswith("   1 dev") and line.count("|") == 6
+    assert line.startswith("   1 dev") and line.count("|") == 7
     with pytest.raises(SystemExit):
         mt.main(["--variants", "nope"])
     assert "unknown variants" in capsys.readouterr().err
