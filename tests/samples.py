@@ -11,6 +11,17 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 COMMITTED = os.path.join(ROOT, "sample_videos")
 
 
+def motion_truth_harness():
+    """benchmarks/motion_truth.py as a module (issue 18's measurement harness)."""
+    import importlib.util
+    import sys
+    spec = importlib.util.spec_from_file_location("motion_truth", os.path.join(ROOT, "benchmarks", "motion_truth.py"))
+    mod = importlib.util.module_from_spec(spec)
+    sys.path.insert(0, os.path.join(ROOT, "benchmarks"))
+    spec.loader.exec_module(mod)
+    return mod
+
+
 def committed(name: str) -> str:
     """Folder of a committed sample (video.mp4, outline.json, mask.png, truth.npz)."""
     return os.path.join(COMMITTED, name)

@@ -1,24 +1,12 @@
 """benchmarks/motion_truth.py, the harness the motion of issue 18 is judged by: its measurements by
 hand, and one short run end to end."""
-import importlib.util
-import os
-import sys
 
 import numpy as np
 import pytest
 
-from samples import ROOT
+from samples import motion_truth_harness
 
-
-def _harness():
-    spec = importlib.util.spec_from_file_location("motion_truth", os.path.join(ROOT, "benchmarks", "motion_truth.py"))
-    mod = importlib.util.module_from_spec(spec)
-    sys.path.insert(0, os.path.join(ROOT, "benchmarks"))
-    spec.loader.exec_module(mod)
-    return mod
-
-
-mt = _harness()
+mt = motion_truth_harness()
 
 
 def test_camera_error_is_the_centre_displacement_against_the_true_offset():

@@ -16,10 +16,11 @@ import numpy as np
 
 from ..fileio import atomic_savez
 from .appearance import AppearanceMaps
+from .dense_flow import AnchoredFlow
 from .hierarchy import Hierarchy
 from .tracks import Tracks
 
-VERSION = 2   # 2: tracks born after frame 1 (re-detection)
+VERSION = 3   # 2: tracks born after frame 1 (re-detection); 3: the dense flow from frame 1
 
 
 def stage_key(video: str, outline_mask: np.ndarray, start: int, stop: int, scale: float,
@@ -42,7 +43,10 @@ def save(folder: str, key: str, tracks: Tracks, maps: AppearanceMaps, hier: Hier
     meta = {"version": VERSION, "fps": tracks.fps, "start": tracks.start, "size": list(tracks.size),
             "warnings": tracks.warnings, "factor": maps.factor}
     times = tracks.times if tracks.times is not None else np.arange(tracks.n_frames) / tracks.fps
-    atomic_savez(path, points=tracks.points, valid=tracks.valid, camera=tracks.camera, times=times,
+    fl = tracks.flow
+    flow = {} if fl is None else {"flow_frames": fl.frames, "flow_disp": fl.disp, "flow_err": fl.err,
+                                  "flow_origin": fl.origin, "flow_step": np.asarray(fl.step, np.float64)}
+    atomic_savez(path, points=tracks.points, valid=tracks.valid, camera=tracks.camera, times=times, **flow,
                  intensity=tracks.intensity, mean=maps.mean, std=maps.std, dark=maps.dark, mask=maps.mask,
                  first=maps.first, parent=hier.parent, level=hier.level, member_sizes=sizes,
                  members=np.concatenate(hier.members).astype(np.int64) if len(sizes) else np.zeros(0, np.int64),
@@ -60,8 +64,10 @@ def load(folder: str, key: str) -> tuple[Tracks, AppearanceMaps, Hierarchy] | No
             meta = json.loads(str(z["meta_json"]))
             if meta.get("version") != VERSION:
                 return None
+            flow = (AnchoredFlow(z["flow_frames"], z["flow_disp"], z["flow_err"], z["flow_origin"], z["flow_step"])
+                    if "flow_frames" in z.files else None)
             tracks = Tracks(z["points"], z["valid"], z["camera"], z["intensity"], float(meta["fps"]),
-                            int(meta["start"]), tuple(meta["size"]), list(meta["warnings"]), z["times"])
+                            int(meta["start"]), tuple(meta["size"]), list(meta["warnings"]), z["times"], flow)
             maps = AppearanceMaps(z["mean"], z["std"], z["dark"], z["mask"], z["first"], float(meta["factor"]))
             members = np.split(z["members"], np.cumsum(z["member_sizes"])[:-1])
             hier = Hierarchy(z["parent"], z["level"], list(members))

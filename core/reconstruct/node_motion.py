@@ -38,6 +38,10 @@ from .tracks import Tracks
 #: confidence below which a node-frame counts as poorly measured (≈ 1.4 tracks within the scale)
 LOW_CONFIDENCE = 0.5
 WIDE = 4.0            # the fallback neighbourhood, × scale
+#: flow px (its images: the tree at most TrackParams.flow_max_px): the dense flow's forward–backward
+#: disagreement at which its confidence is e^(−1/2) = 0.61; half the tracks' own limit
+#: (TrackParams.fb_max_error = 1 px marks a track lost)
+FLOW_FB_PX = 0.5
 #: a node's scale grows to reach this many of frame 1's tracks (up to WIDE × scale): then the
 #: k·e^(−1/2) ≈ 3 weight of its nearest tracks keeps its confidence at 0.5 after half are lost
 K_NEAREST = 5
@@ -164,7 +168,41 @@ def follow_tracks(nodes0: np.ndarray, tracks: Tracks, scale: float,
             disp[fixed] = 0.0
             conf[a + 1:b + 1, fixed] = 1.0
         out[a + 1:b + 1] = out[0][None] + disp.transpose(1, 0, 2)
-    return NodeMotion(out.astype(np.float32), conf)
+    return fuse_flow(NodeMotion(out.astype(np.float32), conf), out[0], tracks, fixed)
+
+
+def fuse_flow(motion: NodeMotion, nodes0: np.ndarray, tracks: Tracks, fixed: np.ndarray | None = None,
+              fb_px: float = FLOW_FB_PX) -> NodeMotion:
+    """The tracks' node motion fused with the dense flow from frame 1 (``tracks.flow``; unchanged
+    without one). Per node and frame, the flow's position ``x_f`` (the flow at the node's frame-1
+    position ``nodes0 (N, 2)``, camera motion removed) has the confidence ``c_f = exp(−e² / 2 fb_px²)``
+    from its forward–backward disagreement e (the flow's px), and
+
+        x = (c · x_tracks + c_f · x_f) / (c + c_f),   confidence 1 − (1 − c)(1 − c_f)     (eq. fuse)
+
+    with c the tracks' confidence: a node whose tracks are few or who the flow follows well leans
+    on the flow; the flow, wrong where leaves turn or the light changes, disagrees with itself there
+    and leaves the tracks' motion. ``fixed`` nodes keep theirs."""
+    flow = tracks.flow
+    F, N = motion.nodes.shape[:2]
+    if flow is None or len(flow.frames) == 0 or F < 2 or N == 0:
+        return motion
+    d, e = flow.sample(np.asarray(nodes0, np.float64), F)
+    img = np.asarray(nodes0, np.float64)[None] + d                    # where the flow puts them (image px)
+    cam = tracks.camera[:F].astype(np.float64)
+    x_f = np.einsum("fij,fnj->fni", cam[:, :, :2], img) + cam[:, None, :, 2]   # frame-1 coordinates
+    c_f = np.exp(-np.square(e, dtype=np.float64) / (2.0 * fb_px * fb_px))
+    c_f[0] = 0.0
+    c = motion.confidence.astype(np.float64)
+    w = c / np.maximum(c + c_f, 1e-12)
+    nodes = w[..., None] * motion.nodes + (1.0 - w[..., None]) * x_f
+    conf = 1.0 - (1.0 - c) * (1.0 - c_f)
+    if fixed is not None:
+        nodes[:, fixed] = motion.nodes[:, fixed]
+        conf[:, fixed] = motion.confidence[:, fixed]
+    nodes[0] = motion.nodes[0]
+    conf[0] = motion.confidence[0]
+    return NodeMotion(nodes.astype(np.float32), conf.astype(np.float32))
 
 
 class _Pairs:

@@ -90,13 +90,20 @@ def track_video(info: VideoInfo, outline: Outline, start: int, stop: int, params
                          "outline the whole tree (leaves and trunk) in the first frame")
     acc = AppearanceAccumulator(first, outline)
 
+    prepared = [0]
+
     def prepare(frame: np.ndarray):
-        """In the decoding thread: the tracker's images and the appearance's small grey."""
+        """In the decoding thread: the tracker's images, the appearance's small grey and, when
+        due, the dense flow from frame 1 (at the frame's timestamp: the reader has appended it)."""
+        prepared[0] += 1
         images = tracker.prepare(frame)
-        return images, acc.shrink(images[0])
+        t = stamps[-1] - stamps[0] if len(stamps) > prepared[0] else np.nan
+        t = t if np.isfinite(t) and t > 0 else prepared[0] / max(info.fps, 1e-3)
+        return images, acc.shrink(images[0]), tracker.flow.compute(images[1], float(t))
 
     total = stop - start
-    for k, (images, small) in enumerate(prefetch(decoded, transform=prepare), start=1):
+    for k, (images, small, flow) in enumerate(prefetch(decoded, transform=prepare), start=1):
+        tracker.flow.add(k, flow)
         # the reader appends each frame's timestamp before handing it over; dt in units of the
         # clip's typical interval (median of the last 50), whatever its header says
         gaps = np.diff(stamps[max(0, k - 50):k + 1]) if len(stamps) > k else np.ones(1)

@@ -19,6 +19,7 @@ import cv2
 import numpy as np
 
 from ..outline import Outline
+from .dense_flow import AnchoredFlow, FlowAccumulator
 
 #: px: a crown whose tracks' sway (75th percentile of their displacement std) is below this is
 #: below what Lucas-Kanade resolves (its noise is ~0.02-0.05 px on a still tree)
@@ -49,6 +50,10 @@ class TrackParams:
     redetect_every: int = 4       # frames between checks for thinned tracks (0: never re-detect)
     redetect_below: float = 0.6   # a grid cell over the crown is refilled when its live tracks fall
                                   # below this share of its frame-1 count
+    flow_hz: float = 7.5          # dense flow from frame 1 (dense_flow.py) at most this often a
+                                  # second, fused with the tracks per node; 0: tracks only
+    flow_max_px: float = 320.0    # the tree's larger side in the flow's images (its cost grows
+                                  # with their area; its gains were measured at 260-320 px)
     max_tracks: int = 12000       # columns of the track arrays (memory: F x this x 9 bytes); once
                                   # they are all used, a new track takes the column of a late track
                                   # already lost (a 1080p clip in wind reaches 12000 in ~12 s)
@@ -64,7 +69,8 @@ class Tracks:
     float32 affine maps from each frame's image to frame 1; ``intensity (P,)`` float32 grey level
     0..255 at each corner where it was first seen;
     ``fps`` frames per second; ``start`` first frame index of the range; ``size`` (width, height);
-    ``times (F,)`` seconds from the first frame (the frames' timestamps; None: ``index / fps``).
+    ``times (F,)`` seconds from the first frame (the frames' timestamps; None: ``index / fps``);
+    ``flow`` the dense flow from frame 1 (:mod:`.dense_flow`; None: tracks only).
 
     A column holds one track, or, once :attr:`TrackParams.max_tracks` columns exist, several late
     tracks one after another: each run of valid frames is one track, born where it starts (with
@@ -81,6 +87,7 @@ class Tracks:
     size: tuple[int, int]
     warnings: list[str] = field(default_factory=list)
     times: np.ndarray | None = None
+    flow: AnchoredFlow | None = None
 
     @property
     def n_frames(self) -> int:
@@ -291,6 +298,9 @@ class Tracker:
         self.jerk = np.zeros(len(pts), np.float32)               # running mean |Δ step|, px
         self.resid = [np.zeros(len(pts), np.float32)]            # per frame: motion beyond neighbours
         self._grid_init(raw)
+        # the dense flow from frame 1: computed by the caller (run.track_video does it in the
+        # decoding thread, FlowAccumulator.compute), kept with the tracks
+        self.flow = FlowAccumulator(gray, outline.bbox, self.s, self.params.flow_hz, self.params.flow_max_px)
 
     @staticmethod
     def _sample(gray: np.ndarray, pts: np.ndarray) -> np.ndarray:
@@ -545,8 +555,9 @@ class Tracker:
         for t, (p, v) in enumerate(zip(self.points, self.valid)):
             points[t, :len(p)] = p
             valid[t, :len(v)] = v
+        flow = self.flow.result()
         tr = Tracks(points, valid, np.stack(self.camera).astype(np.float32), self.intensity, self.fps,
-                    self.start, self.size)
+                    self.start, self.size, flow=flow if flow is not None and len(flow.frames) else None)
         if tr.points.shape[1] == 0:
             tr.warnings.append("no corners found inside the outline; check that it surrounds the tree")
         elif tr.n_frames > 2:
