@@ -91,6 +91,22 @@ def survival(valid: np.ndarray) -> list[float]:
     return out + [float(valid[-1].sum()) / alive0]
 
 
+def confidence_calibration(nodes2d: np.ndarray, confidence: np.ndarray, truth: dict) -> dict:
+    """Whether the motion confidence means something: the median error of the node displacement
+    (each node against the true node nearest it in frame 1, % of the height) over node-frames with
+    confidence below ``LOW_CONFIDENCE`` (``low``) and at least 0.9 (``high``), and the share of
+    node-frames that are low."""
+    tn = truth["nodes2d"].astype(np.float64)
+    F = min(len(tn), len(nodes2d))
+    _, m = cKDTree(tn[0]).query(nodes2d[0])
+    err = np.linalg.norm((nodes2d[1:F] - nodes2d[:1]) - (tn[1:F, m] - tn[:1, m]), axis=2)
+    err = 100.0 * err / max(float(np.ptp(tn[0][:, 1])), 1e-9)
+    c = np.asarray(confidence)[1:F]
+    low, high = c < LOW_CONFIDENCE, c >= 0.9
+    return {"low": float(np.median(err[low])) if low.any() else float("nan"),
+            "high": float(np.median(err[high])) if high.any() else float("nan"), "low_share": float(low.mean())}
+
+
 def same_node_truth_corr(nodes2d: np.ndarray, sel: np.ndarray, truth: dict) -> float:
     """Median x-displacement correlation of skeleton nodes ``sel`` with their nearest true node (frame 1)."""
     if len(sel) == 0:
@@ -139,6 +155,8 @@ def measure(variant: str, seed: int, folder: str, frames: int | None = None, tra
     share = (conf >= LOW_CONFIDENCE).mean(axis=1)           # per frame: share of confident nodes
     out["confident"] = {"worst_frame": float(share.min()), "median_frame": float(np.median(share)),
                         "frames_ge_90": float((share >= 0.9).mean())}
+    if sk.confidence is not None:
+        out["calibration"] = confidence_calibration(sk.nodes2d.astype(np.float64), sk.confidence, truth)
     out["warnings"] = res.warnings
     # the real-footage reference: one flow pass, sampled at our nodes and at the true ones
     rows = min(n, sk.nodes2d.shape[0])
