@@ -29,12 +29,13 @@ SKELETON_KINDS = ("traced", "paper")
 
 #: Seconds a 2D stage takes ≈ fixed + per frame × frames ``(fixed s, s per frame)``, measured on
 #: sample_videos/broad and sparse (480×360 px, 12 to 180 frames, no cache; the bpy 5.0.1 wheel and
-#: Blender 4.3 on 2 cores, each stage timed alone): tracking 0.08–0.15 s at 12–24 frames, 0.99–1.17 s
-#: at 180 (broad), i.e. ≈ 5.5 ms a frame; the hierarchy 0.03–0.36 s whatever the length; the traced
+#: Blender 4.3 on 2 cores, each stage timed alone): tracking with the dense flow from frame 1
+#: 0.19–0.21 s at 24 frames, 0.35–0.38 s at 48 and 1.32–1.35 s at 180 (broad; sparse 1.0 s), i.e.
+#: ≈ 7 ms a frame (5.5 before the flow); the hierarchy 0.03–0.36 s whatever the length; the traced
 #: skeleton 0.10–0.32 s at 12–48 frames and 0.45–0.98 s at 180. The progress bar gives each stage
 #: its share of the expected total (with the 3D stages of :data:`..pipeline.STAGE_COSTS_3D`), so it
 #: moves at an even pace; before, tracking had 70 % of the 2D bar and the motion 20 % of the whole.
-STAGE_COSTS_2D = {"tracking": (0.02, 0.0055), "hierarchy": (0.12, 0.0), "skeleton": (0.15, 0.002)}
+STAGE_COSTS_2D = {"tracking": (0.04, 0.007), "hierarchy": (0.12, 0.0), "skeleton": (0.15, 0.002)}
 
 
 @dataclass
