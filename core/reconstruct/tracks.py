@@ -476,30 +476,32 @@ class Tracker:
         disp = np.where(alive_now[nb][..., None], (stab - self.ref)[nb], np.nan)
         est = nan_median_rows(disp)
         ref = (st - np.nan_to_num(est)).astype(np.float32)
-        reuse = min(len(raw), len(free))               # the cap is reached: lost late tracks' columns
-        if reuse:
-            cols, raw_r = free[:reuse], raw[:reuse]
-            self.raw[cols], self.ref[cols] = raw_r, ref[:reuse]
-            stab[cols] = st[:reuse]
-            self.valid[-1][cols] = True
-            self.resid[-1][cols] = 0.0
-            self.alive[cols] = True
-            self.step[cols] = np.nan
-            self.jerk[cols] = 0.0
-            self.intensity[cols] = self._sample(full, raw_r / self.s)
-            raw, ref, st = raw[reuse:], ref[reuse:], st[reuse:]
-        if len(raw):                                    # the rest in new columns
-            m = len(raw)
-            self.raw = np.vstack([self.raw, raw])
-            self.ref = np.vstack([self.ref, ref])
-            self.points[-1] = np.vstack([stab, st])
-            self.valid[-1] = np.concatenate([self.valid[-1], np.ones(m, bool)])
-            self.resid[-1] = np.concatenate([self.resid[-1], np.zeros(m, np.float32)])
-            self.alive = np.concatenate([self.alive, np.ones(m, bool)])
-            self.step = np.vstack([self.step, np.full((m, 2), np.nan, np.float32)])
-            self.jerk = np.concatenate([self.jerk, np.zeros(m, np.float32)])
-            self.intensity = np.concatenate([self.intensity, self._sample(full, raw / self.s)])
+        # once the cap is reached, lost late tracks' columns first; the rest in new columns at the end
+        reuse = min(len(raw), len(free))
+        m = len(raw) - reuse
+        n = len(self.raw)
+        self._add_columns(m)
+        cols = np.concatenate([free[:reuse], np.arange(n, n + m)])
+        self.raw[cols], self.ref[cols], self.points[-1][cols] = raw, ref, st
+        self.valid[-1][cols] = True
+        self.resid[-1][cols] = 0.0
+        self.alive[cols] = True
+        self.step[cols] = np.nan
+        self.jerk[cols] = 0.0
+        self.intensity[cols] = self._sample(full, raw / self.s)
         self._live_neighbours()
+
+    def _add_columns(self, m: int) -> None:
+        """``m`` more columns in every per-track array (their values are set by the caller)."""
+        if m <= 0:
+            return
+        two, one = np.zeros((m, 2), np.float32), np.zeros(m, np.float32)
+        self.raw, self.ref, self.step = (np.vstack([a, two]) for a in (self.raw, self.ref, self.step))
+        self.points[-1] = np.vstack([self.points[-1], two])
+        self.valid[-1] = np.concatenate([self.valid[-1], np.zeros(m, bool)])
+        self.alive = np.concatenate([self.alive, np.zeros(m, bool)])
+        self.resid[-1], self.jerk, self.intensity = (np.concatenate([a, one])
+                                                     for a in (self.resid[-1], self.jerk, self.intensity))
 
     def _reject_jerks(self, stab: np.ndarray, dt: float = 1.0) -> None:
         """Kill tracks whose per-frame step changes abruptly against the crown's (branches sway
