@@ -26,6 +26,8 @@ import numpy as np
 BLUR = 3.0
 #: flow px between the stored grid's samples (the blurred field varies slowly at this scale)
 STEP = 4
+#: grid cells: the blur on the grid that, after a cell's mean (σ² = STEP²/12), makes BLUR in all
+GRID_SIGMA = float(np.sqrt(BLUR ** 2 - STEP ** 2 / 12.0) / STEP)
 #: of the tree's size: the crop around the outline's box (the crown moves by up to ~10 % of its size)
 MARGIN_FRAC = 0.12
 
@@ -136,8 +138,7 @@ class FlowAccumulator:
     def _grid(self, field: np.ndarray) -> np.ndarray:
         """A flow-px field ``(h, w, 2)`` on the grid: cell means, blurred so the whole is ~BLUR px."""
         g = cv2.resize(field, self.grid_size, interpolation=cv2.INTER_AREA)
-        sigma = np.sqrt(max(BLUR ** 2 - STEP ** 2 / 12.0, 0.0)) / STEP      # a cell's mean: σ² = STEP²/12
-        return cv2.GaussianBlur(g, (0, 0), sigma) if sigma > 0 else g
+        return cv2.GaussianBlur(g, (0, 0), GRID_SIGMA)
 
     def add(self, frame: int, fields: tuple[np.ndarray, np.ndarray] | None) -> None:
         """Keep :meth:`compute`'s result for ``frame`` (index from the first tracked frame)."""
@@ -147,11 +148,10 @@ class FlowAccumulator:
             self.err.append(fields[1])
 
     def result(self) -> AnchoredFlow | None:
-        if self.dis is None:
+        """The flows computed so far, or None when there are none (``hz`` 0, or no frame yet)."""
+        if not self.frames:
             return None
-        gw, gh = self.grid_size
         # grid sample j averages flow px [STEP·j, STEP·(j+1)): its centre, in frame px
         origin = np.array([self.x0, self.y0]) / self.scale + (STEP - 1) / 2.0 / self.fpx
-        disp = np.stack(self.disp) if self.disp else np.zeros((0, gh, gw, 2), np.float16)
-        err = np.stack(self.err) if self.err else np.zeros((0, gh, gw), np.float16)
-        return AnchoredFlow(np.asarray(self.frames, np.int64), disp, err, origin, STEP / self.fpx)
+        return AnchoredFlow(np.asarray(self.frames, np.int64), np.stack(self.disp), np.stack(self.err),
+                            origin, STEP / self.fpx)

@@ -18,7 +18,8 @@ the corners' 3 px spacing exceeded the tree's 2 % (1.8 px), so nodes had about o
 their scale, and a clip the nodes followed at 0.99 correlation said its motion was unmeasured
 at 97 % of node-frames (after: 0 %). Where no track within 3s is valid, a wider neighbourhood
 (4s) is used, and where none of those either, the node's last position plus the crown's median
-step: a node never freezes because its own tracks died.
+step: a node never freezes because its own tracks died. When the tracks carry the dense flow from
+frame 1 (:mod:`.dense_flow`), each node and frame is then fused with it (:func:`fuse_flow`).
 
 The motion confidence of a node in a frame is ``1 − exp(−n / 2)`` with n the summed weight of the
 tracks it followed (n ≈ how many tracks within s; the wider fallback counts 1/16 of a track per
@@ -105,9 +106,10 @@ def _pairs(nodes: np.ndarray, pts: np.ndarray, cols: np.ndarray, s: np.ndarray |
 
 def follow_tracks(nodes0: np.ndarray, tracks: Tracks, scale: float,
                   fixed: np.ndarray | None = None, k_nearest: int = K_NEAREST) -> NodeMotion:
-    """Move nodes ``(N, 2)`` (frame-1 px) with the tracks near them (see the module docstring);
-    ``scale`` px; ``fixed (N,)`` bool marks nodes that never move (the trunk base); ``k_nearest``
-    the frame-1 tracks each node's scale grows to reach (0: ``scale`` for every node)."""
+    """Move nodes ``(N, 2)`` (frame-1 px) with the tracks near them, fused with ``tracks.flow``
+    where there is one (see the module docstring); ``scale`` px; ``fixed (N,)`` bool marks nodes
+    that never move (the trunk base); ``k_nearest`` the frame-1 tracks each node's scale grows to
+    reach (0: ``scale`` for every node)."""
     F, P = tracks.points.shape[:2]
     N = len(nodes0)
     out = np.repeat(np.asarray(nodes0, np.float64)[None], F, axis=0)

@@ -557,9 +557,8 @@ class Tracker:
         for t, (p, v) in enumerate(zip(self.points, self.valid)):
             points[t, :len(p)] = p
             valid[t, :len(v)] = v
-        flow = self.flow.result()
         tr = Tracks(points, valid, np.stack(self.camera).astype(np.float32), self.intensity, self.fps,
-                    self.start, self.size, flow=flow if flow is not None and len(flow.frames) else None)
+                    self.start, self.size, flow=self.flow.result())
         if tr.points.shape[1] == 0:
             tr.warnings.append("no corners found inside the outline; check that it surrounds the tree")
         elif tr.n_frames > 2:
