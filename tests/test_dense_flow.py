@@ -1,4 +1,4 @@
-"""core/reconstruct/dense_flow.py and node_motion.fuse_flow: the dense flow from frame 1 as the
+"""core/reconstruct/dense_flow.py and node_motion.fuse: the dense flow from frame 1 as the
 nodes' second motion source."""
 import cv2
 import numpy as np
@@ -95,17 +95,43 @@ def test_fuse_weighs_tracks_and_flow_by_their_confidences():
     cam = np.repeat(np.array([[[1.0, 0, 0], [0, 1.0, 0]]], np.float32), F, axis=0)
     cam[1, 0, 2] = -3.0
     nodes0 = np.array([[10.0, 10.0], [20.0, 10.0]])
-    motion = nm.NodeMotion(np.stack([nodes0, nodes0 + [[2.0, 0.0], [2.0, 0.0]]]).astype(np.float32),
-                           np.array([[1, 1], [0.5, 0.5]], np.float32))
-    out = nm.fuse_flow(motion, nodes0, _tracks_with(fl, F, cam), fixed=np.array([False, True]))
+    x_f, c_f = nm.flow_positions(nodes0, _tracks_with(fl, F, cam), fixed=np.array([False, True]))
     cf = np.exp(-0.5)
-    x_f = 10.0 + 4.0 - 3.0
-    want = (0.5 * 12.0 + cf * x_f) / (0.5 + cf)
-    assert out.nodes[1, 0, 0] == pytest.approx(want, abs=1e-4)
-    assert out.confidence[1, 0] == pytest.approx(1 - 0.5 * (1 - cf), abs=1e-5)
-    assert out.nodes[1, 1, 0] == pytest.approx(22.0) and out.confidence[1, 1] == pytest.approx(0.5)
-    assert out.nodes[0] == pytest.approx(nodes0)
-    assert nm.fuse_flow(motion, nodes0, _tracks_with(None, F)) is motion
+    assert x_f[1, 0] == pytest.approx([10.0 + 4.0 - 3.0, 10.0], abs=1e-4)
+    assert c_f[1] == pytest.approx([cf, 0.0]) and c_f[0] == pytest.approx([0.0, 0.0])
+    x, c = nm.fuse(nodes0 + [[2.0, 0.0], [2.0, 0.0]], np.array([0.5, 0.5]), x_f[1], c_f[1])
+    assert x[0, 0] == pytest.approx((0.5 * 12.0 + cf * 11.0) / (0.5 + cf), abs=1e-4)
+    assert c[0] == pytest.approx(1 - 0.5 * (1 - cf), abs=1e-5)
+    assert x[1, 0] == pytest.approx(22.0) and c[1] == pytest.approx(0.5)
+    assert nm.flow_positions(nodes0, _tracks_with(None, F)) is None
+
+
+def test_a_track_born_later_is_anchored_at_the_fused_position():
+    """eq. d_n(t) with eq. fuse as it goes: track A (+2 px) dies after frame 2, track B is born in
+    frame 2 and moves +1 px by frame 3; the flow puts the node at +6 px, disagreeing with itself by
+    FLOW_FB_PX (c_f = e^-1/2). The node's frame-3 position is B's move added to its *fused* frame-2
+    displacement, fused again; anchoring B on the tracks' own +2 would leave it 1 px short."""
+    F = 4
+    disp = np.zeros((3, 2, 2, 2), np.float16)
+    disp[..., 0] = 6.0
+    fl = df.AnchoredFlow(np.array([1, 2, 3]), disp, np.full((3, 2, 2), nm.FLOW_FB_PX, np.float16),
+                         np.zeros(2), np.array([100.0, 100.0]))
+    pts = np.zeros((F, 2, 2), np.float32)
+    pts[:, 0] = [[10, 10], [12, 10], [12, 10], [12, 10]]
+    pts[:, 1] = [[12, 10], [12, 10], [12, 10], [13, 10]]
+    valid = np.array([[1, 0], [1, 0], [1, 1], [0, 1]], bool)
+    cam = np.repeat(np.array([[[1.0, 0, 0], [0, 1.0, 0]]], np.float32), F, axis=0)
+    tr = trk.Tracks(pts, valid, cam, np.zeros(2, np.float32), 24.0, 0, (100, 100), flow=fl)
+    m = nm.follow_tracks(np.array([[10.0, 10.0]]), tr, scale=2.0, k_nearest=0)
+    c1, cf = 1.0 - np.exp(-0.5), np.exp(-0.5)                        # one track at distance 0; the flow
+    x2 = (c1 * 12.0 + cf * 16.0) / (c1 + cf)                         # fused with the flow
+    w_b = np.exp(-(x2 - 12.0) ** 2 / (2 * 2.0 ** 2))                 # B's weight: born 2.4 px away
+    c3 = 1.0 - np.exp(-w_b / 2.0)
+    x3 = (c3 * (x2 + 1.0) + cf * 16.0) / (c3 + cf)
+    assert m.nodes[2, 0, 0] == pytest.approx(x2, abs=1e-4)
+    assert m.nodes[3, 0, 0] == pytest.approx(x3, abs=1e-4)
+    assert m.confidence[3, 0] == pytest.approx(1.0 - (1.0 - c3) * (1.0 - cf), abs=1e-5)
+    assert m.nodes[3, 0, 0] - (c1 * 13.0 + cf * 16.0) / (c1 + cf) > 0.8
 
 
 def test_a_clip_in_wind_tracks_and_flows_and_its_cache_keeps_the_flow(tmp_path):

@@ -10,7 +10,7 @@ with the forward field (float16).
 Anchored to frame 1, it never drifts; where leaves turn or the light changes it is wrong, and
 says so through ``e``. Lucas–Kanade tracks are the other way round (a track follows its corner
 through flutter, but a time gap of several frames — a dropped-frame clip — makes many jump to a
-neighbour, and each keeps that error): :func:`.node_motion.fuse_flow` weighs the two per node and
+neighbour, and each keeps that error): :func:`.node_motion.fuse` weighs the two per node and
 frame. Measured on the wind samples (2D tip correlation, tracks → fused): flutter 0.88 → 0.89,
 flicker 0.89 → 0.91, variable frame rate 0.69 → 0.77 and 0.90 → 0.94.
 """
