@@ -136,12 +136,12 @@ def follow_tracks(nodes0: np.ndarray, tracks: Tracks, scale: float,
     for a, b in zip(starts, ends):
         cols = np.flatnonzero(born[a])
         origin[cols] = points[a, cols]
-        again = cols[seen[cols]]
-        if len(again):                       # a column's new track: its last one's pairs go
-            keep = np.ones(P)
-            keep[again] = 0.0
-            near.drop(keep)
-            wide.drop(keep)
+        # pairs go with their track: a column's old track when a new one is born in it, and every
+        # track lost before this segment (lost stays lost: it would only add zeros to each product)
+        keep = valid[a].astype(np.float64)
+        keep[cols[seen[cols]]] = 0.0
+        near.drop(keep)
+        wide.drop(keep)
         seen[cols] = True
         X = out[a]
         d_a = X - out[0]                     # the nodes' displacement when these tracks are born
@@ -224,8 +224,14 @@ class _Pairs:
     def drop(self, keep: np.ndarray) -> None:
         """Forget the pairs of the columns where ``keep (P,)`` is 0."""
         k = keep[None, :]
-        self.w = sp.csr_matrix(self.w.multiply(k))
-        self.anchor = [sp.csr_matrix(m.multiply(k)) for m in self.anchor]
+        self.w = self._pruned(self.w.multiply(k))
+        self.anchor = [self._pruned(m.multiply(k)) for m in self.anchor]
+
+    @staticmethod
+    def _pruned(m) -> sp.csr_matrix:
+        out = sp.csr_matrix(m)
+        out.eliminate_zeros()
+        return out
 
     def add(self, w: sp.csr_matrix, disp: np.ndarray) -> None:
         """New pairs ``w (N, P)`` whose tracks are born now, the nodes displaced by ``disp (N, 2)``."""
