@@ -13,6 +13,8 @@ import numpy as np
 
 from ..outline import Outline
 
+_IDENTITY = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+
 
 @dataclass
 class AppearanceMaps:
@@ -64,7 +66,10 @@ class AppearanceAccumulator:
         gray = small.astype(np.float32)
         m = np.asarray(cam, np.float64).copy()
         m[:, 2] *= s                       # same map, working pixels on both sides
-        g = cv2.warpAffine(gray, m, self.size, flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+        if np.array_equal(m, _IDENTITY):   # a tripod clip's usual map: nothing to warp
+            g = gray
+        else:
+            g = cv2.warpAffine(gray, m, self.size, flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
         inside = g[self.mask]
         thr = np.partition(inside, int(len(inside) * self.pct / 100))[int(len(inside) * self.pct / 100)] \
             if len(inside) else 0.0
