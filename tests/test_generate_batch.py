@@ -231,18 +231,28 @@ def test_video_mode_fits_the_species_and_grows_in_its_envelope(tmp_path):
         tree = load_tree(out / t["folder"] / "tree3d.npz")
         assert tree.n_frames == 60                                        # default: the species' clip
         f0 = tree.nodes3d[0].astype(float)
-        c, r = env.at(f0[:, 2])
-        over = (np.abs(f0[:, 0] - c) - r) / H                            # picture plane, share of the height
-        print(f"{t['folder']}: {t['bones']} bones, {f0[:, 2].max():.2f} m tall; inside the video's envelope at "
-              f"frame 0 (swaying): {np.mean(over <= 0.01):.3f} with 1% slack, {np.mean(over <= 0.02):.3f} with 2%")
-        # swaying: a node may lean out, but the tree sways like the video's: the 95th percentile of
-        # how far its nodes get from their frame-0 place is at most twice the source tree's
-        # (measured 1.35-1.6x, then 2.15x once the motion solve shared a subtree's turn along its
-        # chain; since generated trees are scaled to the source's excursion, 0.77-0.99x; a single
-        # tip's lean at frame 0 ranged 5-8.5 % of the height from one reconstruction of the same
-        # clip to the next, so it is no bar)
-        assert np.mean(over <= 0.02) >= 0.98
         P = tree.nodes3d.astype(float)
+        # picture plane, share of the height by which each node is outside the envelope (F, N):
+        c, r = env.at(P[..., 2].ravel())
+        over = ((np.abs(P[..., 0].ravel() - c) - r) / H).reshape(P.shape[:2])
+        mid = P.mean(0)                                                   # the sway's centre
+        cm, rm = env.at(mid[:, 2])
+        over_mid = (np.abs(mid[:, 0] - cm) - rm) / H
+        print(f"{t['folder']}: {t['bones']} bones, {f0[:, 2].max():.2f} m tall; inside the video's envelope: "
+              f"sway's centre {np.mean(over_mid <= 0.01):.3f} with 1% slack; swaying, the worst frame "
+              f"{np.mean(over <= src_amp, axis=1).min():.3f} within the source's excursion ({src_amp:.3f}), "
+              f"frame 0 {np.mean(over[0] <= 0.02):.3f} with 2%")
+        # the tree grows inside the envelope: its sway's centre is in it; swaying, a node may lean
+        # out, at every frame at most 2 % of them farther than the source tree's own sway (its 95th
+        # percentile excursion: 5 % of the source's nodes move farther). Frame 0 alone is one phase
+        # of the sway: a generated tree leaned 4 % of the height out there (3 % of its nodes beyond
+        # 2 %) while its centre was wholly inside with 1 % slack (real Blender 4.3; worst frame 0.985)
+        assert np.mean(over_mid <= 0.01) >= 0.98
+        assert np.mean(over <= src_amp, axis=1).min() >= 0.98
+        # the tree sways like the video's: the 95th percentile of how far its nodes get from their
+        # frame-0 place is at most twice the source tree's (measured 1.35-1.6x, then 2.15x once the
+        # motion solve shared a subtree's turn along its chain; since generated trees are scaled to
+        # the source's excursion, 0.77-0.99x)
         amp = np.percentile(np.linalg.norm(P - P[:1], axis=-1).max(0), 95) / H
         print(f"  sway: 95th percentile excursion {amp:.3f} of the height, source {src_amp:.3f} (x{amp / src_amp:.2f})")
         assert amp <= 2.0 * src_amp, (amp, src_amp)

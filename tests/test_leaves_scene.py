@@ -39,7 +39,8 @@ def _leaf_names(tree):
 
 
 def _rotation_angle_about(q, axis):
-    """Signed angles ``(F,)`` of quaternions ``(F, 4)`` (w, x, y, z) about ``axis``."""
+    """Signed angles ``(F,)`` of quaternions ``(F, 4)`` (w, x, y, z, w ≥ 0: the exporter may write
+    either of q and −q) about ``axis``."""
     return 2 * np.arctan2(q[:, 1:] @ axis, q[:, 0])
 
 
@@ -135,6 +136,7 @@ def test_leaves_are_in_the_gltf_fbx_and_usd_exports_animated(tree, tmp_path):
         q = _glb_flutter(doc, binary, joints[names[k]])
         assert q is not None and len(q) == FRAMES
         rel = np.array([_qmul(_qconj(q[0]), qt) for qt in q])          # rotation since frame 1
+        rel *= np.where(rel[:, :1] < 0, -1.0, 1.0)                     # q and -q: the same rotation
         axis = np.linalg.svd(rel[:, 1:], full_matrices=False)[2][0]
         angle = _rotation_angle_about(rel, axis)
         want = L.flutter[:, k] - L.flutter[0, k]
