@@ -132,17 +132,14 @@ def follow_tracks(nodes0: np.ndarray, tracks: Tracks, scale: float,
     s_n = node_scales(out[0], points[0, valid[0]], scale, k_nearest)
     by_flow = flow_positions(out[0], tracks, fixed)
     origin = np.zeros((P, 2))                # each column's track's position at its birth
-    seen = np.zeros(P, bool)
     for a, b in zip(starts, ends):
         cols = np.flatnonzero(born[a])
         origin[cols] = points[a, cols]
         # pairs go with their track: a column's old track when a new one is born in it, and every
         # track lost before this segment (lost stays lost: it would only add zeros to each product)
-        keep = valid[a].astype(np.float64)
-        keep[cols[seen[cols]]] = 0.0
+        keep = (valid[a] & ~born[a]).astype(np.float64)
         near.drop(keep)
         wide.drop(keep)
-        seen[cols] = True
         X = out[a]
         d_a = X - out[0]                     # the nodes' displacement when these tracks are born
         near.add(_pairs(X, origin[cols], cols, s_n, P), d_a)
