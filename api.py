@@ -44,6 +44,7 @@ SHORTCUTS = {
     "leaf_density": "share of the leaf seeds kept, (0, 1]",
     "leaf_cards": "leaf cards per cluster",
     "flutter_hz": "leaf flutter frequency, Hz",
+    "leaf_colour": "leaf colour: albedo, video or #RRGGBB",
 }
 
 
@@ -64,9 +65,10 @@ def settings(**kw: Any) -> pipeline.Settings:
         elif key == "leaves" and not (value is None or dataclasses.is_dataclass(value)):
             if not value:
                 s.leaves = None
-        elif key in ("leaf_density", "leaf_cards", "flutter_hz"):
+        elif key in ("leaf_density", "leaf_cards", "flutter_hz", "leaf_colour"):
             if s.leaves is not None:
-                setattr(s.leaves, {"leaf_density": "density", "leaf_cards": "cards"}.get(key, key), value)
+                setattr(s.leaves, {"leaf_density": "density", "leaf_cards": "cards",
+                                   "leaf_colour": "colour"}.get(key, key), value)
         elif key in fields:
             setattr(s, key, value)
         else:

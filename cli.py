@@ -102,6 +102,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help=f"leaf cards (quads) per cluster, {_range(LeafParams, 'cards')} (default %(default)s)")
     p.add_argument("--flutter-hz", type=float, default=_default(LeafParams, "flutter_hz"),
                    help="leaf flutter frequency in Hz (default %(default)s)")
+    p.add_argument("--leaf-colour", default=_default(LeafParams, "colour"),
+                   help="leaf colour: albedo (the video's foliage corrected for exposure and white balance; a "
+                        "plausible green where the video shows a dark or backlit silhouette), video (the raw "
+                        "sample) or #RRGGBB (default %(default)s)")
     p.add_argument("--leaf-image", help="image of one leaf (alpha = shape) instead of the procedural leaf")
     p.add_argument("--fbx", action="store_true", help="write DIR/tree.fbx (armature + skinned mesh, baked animation)")
     p.add_argument("--usd", action="store_true", help="write DIR/tree.usdc (needs a Blender built with USD)")
@@ -281,7 +285,7 @@ def settings_from_args(args) -> pipeline.Settings:
                         height_m=args.height, conifer=args.conifer, solver=args.solver, twigs=args.twigs,
                         fit_branches=not args.no_branch_fit, curliness=args.curliness, bark=args.bark,
                         leaves=not args.no_leaves, leaf_density=args.leaf_density, leaf_cards=args.leaf_cards,
-                        flutter_hz=args.flutter_hz)
+                        flutter_hz=args.flutter_hz, leaf_colour=args.leaf_colour)
 
 
 def _reconstruct(args, gen) -> int:

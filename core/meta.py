@@ -45,8 +45,9 @@ class TreeMeta(TypedDict, total=False):
     levels: int
     scale: float
     version: str
-    # details (detail.twigs.add_twigs)
+    # details (detail.twigs.add_twigs, detail.leaf_seeds.place_leaves)
     twigs: dict[str, Any]
+    leaf_colour: dict[str, Any]
     # a generated tree (generate.growth.grow_tree)
     species: str
     seed: int
@@ -95,6 +96,8 @@ KEYS: dict[str, Key] = {
                    "add-on version of the run (else the file format version)"),
     "twigs": Key("{first_node, nodes_added, per_generation, ...}", ("twigs.add_twigs",),
                  "twig nodes are first_node.. N-1"),
+    "leaf_colour": Key("{mode, colour sRGB [3], source, why}", ("leaf_seeds.place_leaves",),
+                       "the leaves' colour: the mode asked, the median colour used and how it was decided"),
     "species": Key("name", ("growth.grow_tree",), "species the tree was grown from"),
     "seed": Key("int", ("growth.grow_tree",), "growth seed"),
     "generated": Key("bool", ("growth.grow_tree",), "grown by the generator, not reconstructed"),

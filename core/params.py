@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
 from dataclasses import dataclass
 from typing import Any
 
@@ -30,11 +31,13 @@ class Spec:
     what: str = ""
     unit: str = ""
     fix: str = ""
+    pattern: str = ""               # a string also accepted besides ``choices`` (a regular expression)
+    also: str = ""                  # how a user writes such a string ("#RRGGBB")
 
     def describe(self) -> str:
         """The range as a user reads it: ``2..9``, ``(0, 1]``, ``>= 0``, ``one of a, b``."""
         if self.choices:
-            return "one of " + ", ".join(self.choices)
+            return "one of " + ", ".join(self.choices + ((self.also,) if self.also else ()))
         if self.lo is not None and self.hi is not None:
             return f"({self.lo:g}, {self.hi:g}]" if self.lo_open else f"{self.lo:g}..{self.hi:g}"
         if self.lo is not None:
@@ -45,7 +48,8 @@ class Spec:
 
     def ok(self, value: Any) -> bool:
         if self.choices:
-            return value in self.choices
+            return value in self.choices or bool(self.pattern and isinstance(value, str)
+                                                 and re.fullmatch(self.pattern, value))
         if value is None or isinstance(value, bool):
             return True
         v = float(value)
@@ -57,9 +61,10 @@ class Spec:
 
 
 def param(default: Any, lo: float | None = None, hi: float | None = None, *, lo_open: bool = False,
-          choices: tuple[str, ...] = (), what: str = "", unit: str = "", fix: str = "") -> Any:
+          choices: tuple[str, ...] = (), what: str = "", unit: str = "", fix: str = "",
+          pattern: str = "", also: str = "") -> Any:
     """A dataclass field with ``default`` and its :class:`Spec` in the metadata."""
-    s = Spec(default, lo, hi, lo_open, tuple(choices), what, unit, fix)
+    s = Spec(default, lo, hi, lo_open, tuple(choices), what, unit, fix, pattern, also)
     return dataclasses.field(default=default, metadata={"spec": s})
 
 
@@ -86,7 +91,7 @@ def check(obj: Any) -> None:
     for name, s in specs(type(obj)).items():
         value = getattr(obj, name)
         if not s.ok(value) and s.choices:
-            raise InputError(f"unknown {s.what or name} '{value}'; choose one of {', '.join(s.choices)}")
+            raise InputError(f"unknown {s.what or name} '{value}'; choose {s.describe()}")
         if not s.ok(value):
             hint = f" ({s.fix})" if s.fix else ""
             raise InputError(f"{s.what or name} {value} out of range; use {s.describe()}{hint}")

@@ -56,9 +56,18 @@ def settings_from(props) -> pipeline.Settings:
         s.leaves.density, s.leaves.cards = props.leaf_density, props.leaf_cards
         s.leaves.max_clusters = props.max_leaf_clusters
         s.leaves.flutter_hz, s.leaves.flutter_gain = props.flutter_hz, props.flutter_gain
+        s.leaves.colour = leaf_colour_setting(props.leaf_colour_mode, props.leaf_colour_custom)
     else:
         s.leaves = None
     return s
+
+
+def leaf_colour_setting(mode: str, custom) -> str:
+    """``LeafParams.colour`` from the panel: its mode, or the custom colour (sRGB 0..1) as ``#RRGGBB``."""
+    if mode != "custom":
+        return mode
+    r, g, b = (int(round(255 * min(max(float(c), 0.0), 1.0))) for c in custom)
+    return f"#{r:02X}{g:02X}{b:02X}"
 
 
 def mask_polygon(mask, width: int, height: int) -> np.ndarray:

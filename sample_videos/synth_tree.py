@@ -90,7 +90,10 @@ OLD_VARIANTS = ("broad", "conifer", "sparse", "hard", "gentle", "grey", "dense")
 #: a 160x120, a 1080p H.264 and a variable-frame-rate clip
 WIND_VARIANTS = ("flutter", "gusts", "flicker", "foreground", "conifer_storm", "palm", "long", "tiny", "hd",
                  "vfr")
-VARIANTS = OLD_VARIANTS + WIND_VARIANTS
+#: variants for the look on real footage (issue 19): a dense crown front-lit under an overcast
+#: sky, the same backlit (a dark silhouette against the bright sky), and autumn-coloured foliage
+LOOK_VARIANTS = ("frontlit", "backlit", "autumn")
+VARIANTS = OLD_VARIANTS + WIND_VARIANTS + LOOK_VARIANTS
 
 _SHIFT = 4                     # fractional bits for OpenCV drawing (1/16 px precision)
 _SUB = float(1 << _SHIFT)
@@ -166,6 +169,9 @@ class SynthConfig:
     cloud_shadow: float = 0.0           # darkening in drifting cloud shadows (0 = none, 0.3 = 30 %)
     foreground: bool = False            # a blurred branch in front of the tree swinging across the crown
     fronds: tuple = (8, 14)             # palm: frond count range
+    sky: str = "blue"                   # "blue" | "overcast" (a bright, nearly white sky)
+    light: str = "sun"                  # "sun" | "backlit" (crown and bark a dark silhouette)
+    palette: str = "green"              # foliage colours: "green" | "autumn" (reds and oranges)
     encoder: str = "mp4v"               # "mp4v" (cv2.VideoWriter, video.mp4) | "h264" (ffmpeg CLI, libx264)
     vfr_header_fps: float = 0.0         # > 0: frames at irregular times (mean rate fps), H.264 in video.mkv
     #                                     whose header declares this rate
@@ -207,12 +213,18 @@ _PRESETS.update({
     "hd": dict(_WIND, width=1920, height=1080, frames=48, encoder="h264", sway_scale=1.5),
     "vfr": dict(_WIND, fps=12.0, frames=96, vfr_header_fps=30.0, encoder="h264"),
 })
+_DENSE = {k: v for k, v in _PRESETS["dense"].items() if k != "seed"}
+_PRESETS.update({
+    "frontlit": dict(_DENSE, sky="overcast", frames=48),
+    "backlit": dict(_DENSE, sky="overcast", light="backlit", frames=48),
+    "autumn": dict(_DENSE, palette="autumn", frames=48),
+})
 
 #: seeds per variant: "dev" ones may be looked at while developing the reconstruction, "held_out"
 #: ones never (sample_videos/README.md); the preset's own seed is the first dev seed
 SEEDS: dict[str, dict[str, tuple]] = {
     v: {"dev": (int(_PRESETS[v].get("seed", 0)),), "held_out": (101, 102)} for v in OLD_VARIANTS}
-SEEDS.update({v: {"dev": (0, 1), "held_out": (2, 3)} for v in WIND_VARIANTS})
+SEEDS.update({v: {"dev": (0, 1), "held_out": (2, 3)} for v in WIND_VARIANTS + LOOK_VARIANTS})
 
 
 def config_for(variant: str, **overrides) -> SynthConfig:
@@ -596,6 +608,9 @@ class Leaves:
 
 
 _PALETTE_DECIDUOUS = ((22, 58, 30), (42, 122, 66), (74, 172, 112), (105, 212, 178))
+_PALETTE_AUTUMN = ((24, 40, 96), (28, 70, 172), (40, 112, 222), (96, 176, 248))   # BGR reds, oranges
+#: a backlit crown and its bark: the light reaching the camera through or around them
+BACKLIT_GAIN = 0.3
 _PALETTE_CONIFER = ((28, 56, 24), (50, 94, 44), (72, 126, 66), (96, 152, 104))
 _SUN = _unit(np.array([-0.5, -0.55, 0.7]))          # from upper left, in front of the tree
 
@@ -673,7 +688,8 @@ def _cluster_leaves(cfg: SynthConfig, tree: Tree) -> Leaves:
     s = _scale(cfg)
     centres, radii, nodes = _cluster_sites(cfg, tree, rng, s)
     conifer = cfg.kind == "conifer"
-    palette = np.array(_PALETTE_CONIFER if conifer else _PALETTE_DECIDUOUS, float)
+    palette = np.array(_PALETTE_CONIFER if conifer else
+                       _PALETTE_AUTUMN if cfg.palette == "autumn" else _PALETTE_DECIDUOUS, float)
     crown_c = centres.mean(axis=0) if len(centres) else np.zeros(3)
     r_nom = cfg.cluster_radius_px * s
     counts = np.maximum(3, np.round(cfg.leaves_per_cluster * (radii / r_nom) ** 2
@@ -699,6 +715,8 @@ def _cluster_leaves(cfg: SynthConfig, tree: Tree) -> Leaves:
     sunlit = rng.random(lv) < 0.14 * tone ** 2
     col[sunlit] = palette[3]
     col = np.clip(col + rng.normal(0, 4, (lv, 3)), 0, 255)
+    if cfg.light == "backlit":
+        col = col * BACKLIT_GAIN
     lum = col @ np.array([0.114, 0.587, 0.299])
     c_lum = np.bincount(cl, lum, len(radii)) / np.maximum(np.bincount(cl, None, len(radii)), 1)
     shape = _leaf_shapes(rng, lv, np.array(cfg.leaf_size_px) * s, needle=conifer)
@@ -1107,7 +1125,8 @@ def render_background(cfg: SynthConfig) -> np.ndarray:
     gv = int(round(cfg.ground_frac * h))
     rows = np.arange(h, dtype=np.float32)[:, None, None]
     tt = np.clip(rows / max(gv, 1), 0, 1) ** 0.8
-    sky = np.array([196, 138, 78], np.float32) * (1 - tt) + np.array([236, 224, 208], np.float32) * tt
+    top, low = ((196, 138, 78), (236, 224, 208)) if cfg.sky == "blue" else ((226, 224, 221), (240, 240, 238))
+    sky = np.array(top, np.float32) * (1 - tt) + np.array(low, np.float32) * tt
     img = np.broadcast_to(sky, (h, w, 3)).copy()
     cloud = 0.65 * _noise_field(rng, h, w, (3, 5)) + 0.35 * _noise_field(rng, h, w, (8, 12))
     cloud = np.clip((cloud - 0.55) / 0.25, 0, 1)[..., None] * (1 - tt) ** 0.4 * 0.85
@@ -1634,6 +1653,8 @@ def build_scene(cfg: SynthConfig) -> Scene:
     par, child, r0, r1 = _segments(tree)
     rng = _rng(cfg, _S_BARK)
     base, dark, light = _bark_colors(cfg, tree, child, rng)
+    if cfg.light == "backlit":
+        base, dark, light = ([tuple(BACKLIT_GAIN * v for v in c) for c in cols] for cols in (base, dark, light))
     marks = _bark_marks(cfg, tree, par, child, r0, r1, base, rng)
     return Scene(cfg=cfg, tree=tree, leaves=leaves, motion=motion, nodes3d=nodes3d,
                  background=render_background(cfg), occluder=build_occluder(cfg),
@@ -1651,6 +1672,9 @@ def _validate(cfg: SynthConfig) -> None:
         raise ValueError("bark must be 'brown' or 'grey'")
     if cfg.kind not in ("deciduous", "conifer", "palm"):
         raise ValueError("kind must be 'deciduous', 'conifer' or 'palm'")
+    for name, ok in (("sky", ("blue", "overcast")), ("light", ("sun", "backlit")), ("palette", ("green", "autumn"))):
+        if getattr(cfg, name) not in ok:
+            raise ValueError(f"{name} must be one of {ok}")
     if cfg.encoder not in ("mp4v", "h264"):
         raise ValueError("encoder must be 'mp4v' or 'h264'")
     if cfg.vfr_header_fps > 0 and cfg.encoder != "h264":

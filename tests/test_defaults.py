@@ -23,7 +23,8 @@ def _panel(props, name):
 
 @pytest.mark.parametrize("name", sorted(CORE_FIELDS))
 def test_panel_properties_match_the_core(addon, name):
-    """Default = the core's; enum items = the core's choices; limits: the closed bounds are the
+    """Default = the core's; enum items = the core's choices (and "custom" where the core also takes a
+    pattern such as ``#RRGGBB``, written by the panel from its own colour field); limits: the closed bounds are the
     core's, an open lower bound becomes a small value inside the range, an unbounded side keeps
     Blender's limit; soft limits lie inside the core's range; a new scene starts at the default."""
     cls, field = CORE_FIELDS[name]
@@ -32,7 +33,7 @@ def test_panel_properties_match_the_core(addon, name):
     where = f"panel '{name}' vs {cls.__name__}.{field} ({s.describe()})"
     if s.choices:
         assert p.type == "ENUM", where
-        assert tuple(p.enum_items.keys()) == s.choices, where
+        assert tuple(p.enum_items.keys()) == s.choices + (("custom",) if s.pattern else ()), where
         assert p.default == s.default, where
         assert getattr(addon, name) == s.default, where
         return
@@ -145,3 +146,12 @@ def test_panel_cli_and_core_agree_on_every_shared_setting():
     assert (settings.levels, settings.twigs.depth, settings.curliness, settings.bark, settings.height_m) == \
         (core.levels, core.twigs.depth, core.curliness, core.bark, core.height_m)
     assert settings.leaves == core.leaves and settings.motion == core.motion and settings.lift == core.lift
+
+
+def test_the_panels_custom_leaf_colour_is_a_colour_the_core_takes():
+    from tree_from_video.core.detail.leaf_clusters import LeafParams
+    from tree_from_video.operators.reconstruct_op import leaf_colour_setting
+    assert leaf_colour_setting("custom", (0.8, 0.2, 0.0)) == "#CC3300"
+    assert leaf_colour_setting("custom", (1.2, -0.1, 0.5)) == "#FF0080"      # clipped to 0..1
+    assert leaf_colour_setting("video", (0.8, 0.2, 0.0)) == "video"
+    assert spec(LeafParams, "colour").ok(leaf_colour_setting("custom", (0.33, 0.46, 0.18)))

@@ -233,6 +233,9 @@ def test_presets_ship_with_the_add_on_so_the_menu_is_never_missing_paths(addon):
     bpy.ops.script.execute_preset(filepath=os.path.join(presets.SHIPPED_DIR, "Default.py"),
                                   menu_idname="TREE_MT_presets")
     for name in presets.PRESET_VALUES:                   # Default is the registered defaults
+        if getattr(rna[name], "is_array", False):         # a colour: its default_array
+            assert tuple(getattr(addon, name)) == pytest.approx(tuple(rna[name].default_array), rel=1e-5), name
+            continue
         default = rna[name].default
         assert getattr(addon, name) == (pytest.approx(default, rel=1e-5) if rna[name].type == "FLOAT" else default), name
     assert bpy.types.TREE_MT_presets.bl_label == "Default"

@@ -180,6 +180,10 @@ class TREE_PT_output(_TreePanel, bpy.types.Panel):
         sub.prop(props, "leaf_cards")
         sub.prop(props, "flutter_hz", text="Flutter (Hz)")
         sub.prop(props, "flutter_gain")
+        row = sub.row(align=True)
+        row.prop(props, "leaf_colour_mode")
+        if props.leaf_colour_mode == "custom":
+            row.prop(props, "leaf_colour_custom", text="")
         path_field(sub, props, "leaf_image")
         if props.leaf_polygons:
             sub.label(text=f"Last tree: {props.leaf_polygons:,} leaf polygons", icon="INFO")

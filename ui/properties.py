@@ -36,6 +36,7 @@ CORE_FIELDS = {
     "max_leaf_clusters": (LeafParams, "max_clusters"),
     "flutter_hz": (LeafParams, "flutter_hz"),
     "flutter_gain": (LeafParams, "flutter_gain"),
+    "leaf_colour_mode": (LeafParams, "colour"),
 }
 
 
@@ -170,6 +171,17 @@ class TreeVideoSettings(bpy.types.PropertyGroup):
                                           description="How strongly the leaves flutter as their branch moves, in seconds: "
                                                       "the flutter angle A = amount × branch speed / tree height "
                                                       "(radians)")
+    leaf_colour_mode: bpy.props.EnumProperty(
+        name="Leaf Colour", **_core("leaf_colour_mode"),
+        items=[("albedo", "Albedo", "The video's foliage colour corrected for the scene's exposure and white "
+                                    "balance; a plausible foliage green where the video shows a dark, backlit or "
+                                    "grey silhouette"),
+               ("video", "Video", "The colour the video shows, as sampled (a backlit crown comes out dark)"),
+               ("custom", "Custom", "Your colour, each cluster a little lighter or darker as in the video")],
+        description="Colour of the leaves")
+    leaf_colour_custom: bpy.props.FloatVectorProperty(
+        name="Custom Colour", subtype="COLOR_GAMMA", size=3, min=0.0, max=1.0, default=(0.33, 0.46, 0.18),
+        description="The leaves' colour when Leaf Colour is Custom")
     leaf_image: bpy.props.StringProperty(name="Leaf Image", subtype="FILE_PATH",
                                          description="Image of one leaf (alpha = shape, stem at the bottom); empty: "
                                                      "a procedural leaf")

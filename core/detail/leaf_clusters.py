@@ -10,6 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..params import check, param
+from .albedo import HEX, MODES
 
 # ----------------------------------------------------------------------------- leaf clusters
 
@@ -33,8 +34,10 @@ class LeafParams:
     amplitude A(t) = gain · branch speed(t) / tree height, radians, at most
     ``flutter_max_deg`` (a tracking glitch must not spin a cluster); ``leaf_hz`` / ``leaf_angle_deg``
     every leaf's own flap about its stem (phase per leaf); ``fill`` adds seeds where the
-    crown shows foliage colour but no corner (:func:`fill_seeds`); ``seed`` sub-sampling, depths
-    and template."""
+    crown shows foliage colour but no corner (:func:`fill_seeds`); ``colour`` the leaves' colour:
+    ``"albedo"`` (the video's, corrected for the scene's light; a plausible foliage colour where
+    the video shows a silhouette), ``"video"`` (the raw sample) or ``"#RRGGBB"`` (:mod:`.albedo`);
+    ``seed`` sub-sampling, depths and template."""
 
     density: float = param(1.0, 0.0, 1.0, lo_open=True, what="leaf density")
     max_clusters: int = param(1200, 1, 20000, what="leaf clusters")
@@ -46,6 +49,7 @@ class LeafParams:
     leaf_hz: float = 4.0
     leaf_angle_deg: float = 15.0
     fill: bool = True
+    colour: str = param("albedo", choices=MODES, pattern=HEX, also="#RRGGBB", what="leaf colour")
     seed: int = 0
 
 

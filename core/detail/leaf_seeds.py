@@ -20,6 +20,7 @@ from scipy.spatial import cKDTree
 
 from ..envelope import Envelope
 from ..tree3d import image_to_plane
+from .albedo import leaf_colours, scene_light
 from .leaf_clusters import (
     BARK_RADIUS_SHARE,
     TREE_PX_CLOSE,
@@ -130,6 +131,8 @@ def place_leaves(tree, points: np.ndarray, frame_bgr: np.ndarray, base_px: np.nd
     of the tree's pixels, gaps narrower than ``TREE_PX_CLOSE`` × the cluster radius closed, so a
     tuft on a bare twig stays as small as the video shows it, and each cluster moves to the centre
     of the tree pixels within its radius (:func:`centre_on_pixels`).
+    The clusters' colours follow ``params.colour`` (:func:`.albedo.leaf_colours`, the scene's light
+    from ``frame_bgr`` and ``mask``); ``tree.meta["leaf_colour"]`` records the choice.
     Returns a :class:`LeafClusters` or None when there are no seeds."""
     from ..envelope import envelope_from_meta
     p = params or LeafParams()
@@ -195,7 +198,30 @@ def place_leaves(tree, points: np.ndarray, frame_bgr: np.ndarray, base_px: np.nd
         x = np.clip(np.round(pts[:, 0]).astype(int), 0, mask.shape[1] - 1)
         y = np.clip(np.round(pts[:, 1]).astype(int), 0, mask.shape[0] - 1)
         size = np.clip(dist[y, x] * scale / radius, 0.25, 1.0).astype(np.float32)
-    return make_clusters(tree, node, pos, sample_colour(frame_bgr, pts, tree_px=tree_px), dark, radius, p.cards, p.seed, size, p)
+    colour = leaf_colours(sample_colour(frame_bgr, pts, tree_px=tree_px), p.colour, scene_light(frame_bgr, mask),
+                          reference=foliage_colour(frame_bgr, pts, tree_px, mask, radius / scale))
+    tree.meta["leaf_colour"] = colour.meta(p.colour)
+    return make_clusters(tree, node, pos, colour.colours, dark, radius, p.cards, p.seed, size, p)
+
+
+def foliage_colour(frame_bgr: np.ndarray, points: np.ndarray, tree_px: np.ndarray | None,
+                   mask: np.ndarray | None, radius_px: float) -> np.ndarray | None:
+    """sRGB ``(3,)`` median colour of frame 1's tree pixels ``tree_px (H, W)`` (inside ``mask``)
+    within half a cluster radius ``radius_px`` of the clusters' centres ``points (S, 2)`` px: the
+    foliage as the video shows it (bark and sky left out); None without tree pixels there."""
+    if tree_px is None or len(points) == 0:
+        return None
+    own = np.asarray(tree_px, bool) if mask is None else np.asarray(tree_px, bool) & np.asarray(mask, bool)
+    near = np.zeros(own.shape, np.uint8)
+    xy = np.round(points).astype(np.int32)
+    ok = (xy[:, 0] >= 0) & (xy[:, 0] < own.shape[1]) & (xy[:, 1] >= 0) & (xy[:, 1] < own.shape[0])
+    near[xy[ok, 1], xy[ok, 0]] = 1
+    r = max(1, int(round(0.5 * radius_px)))
+    near = cv2.dilate(near, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1,) * 2)) > 0
+    px = frame_bgr[own & near]
+    if len(px) < 20:
+        return None
+    return np.median(px[:, ::-1].astype(np.float64), axis=0) / 255.0
 
 
 def centre_on_pixels(points: np.ndarray, pixels: np.ndarray, radius_px: int) -> np.ndarray:

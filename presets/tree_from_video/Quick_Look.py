@@ -22,3 +22,5 @@ bpy.context.scene.tree_video.leaf_cards = 16
 bpy.context.scene.tree_video.max_leaf_clusters = 1200
 bpy.context.scene.tree_video.flutter_hz = 2.0
 bpy.context.scene.tree_video.flutter_gain = 4.0
+bpy.context.scene.tree_video.leaf_colour_mode = 'albedo'
+bpy.context.scene.tree_video.leaf_colour_custom = (0.33, 0.46, 0.18)
