@@ -48,6 +48,7 @@ class TreeMeta(TypedDict, total=False):
     # details (detail.twigs.add_twigs, detail.leaf_seeds.place_leaves)
     twigs: dict[str, Any]
     leaf_colour: dict[str, Any]
+    bark_colour: dict[str, Any]
     # a generated tree (generate.growth.grow_tree)
     species: str
     seed: int
@@ -96,6 +97,8 @@ KEYS: dict[str, Key] = {
                    "add-on version of the run (else the file format version)"),
     "twigs": Key("{first_node, nodes_added, per_generation, ...}", ("twigs.add_twigs",),
                  "twig nodes are first_node.. N-1"),
+    "bark_colour": Key("{mode, colour sRGB [3], source, why}", ("pipeline.build_3d",),
+                       "the bark's colour: the trunk's pixels in frame 1 as albedo, or a default bark"),
     "leaf_colour": Key("{mode, colour sRGB [3], source, why}", ("leaf_seeds.place_leaves",),
                        "the leaves' colour: the mode asked, the median colour used and how it was decided"),
     "species": Key("name", ("growth.grow_tree",), "species the tree was grown from"),

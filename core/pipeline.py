@@ -11,6 +11,7 @@ from dataclasses import dataclass, field, replace
 import cv2
 import numpy as np
 
+from .detail.albedo import bark_colour, scene_light, trunk_pixels
 from .detail.branch_mesh import MeshParams, check_params
 from .detail.leaf_clusters import LeafParams, check_leaf_params
 from .detail.leaf_seeds import place_leaves
@@ -21,6 +22,7 @@ from .meta import TreeMeta
 from .params import param, same_as
 from .progress import ProgressFn, expected_seconds, stage_split
 from .reconstruct.branch_fit import fit_to_video, measure_branches, tree_map
+from .reconstruct.foreground import foreground
 from .reconstruct.lift import LiftParams, lift
 from .reconstruct.motion import MotionParams, solve_motion
 from .reconstruct.run import (
@@ -113,9 +115,9 @@ def build_3d(res: Result, s: Settings | None = None, name: str = "Tree",
     parts = stage_split(progress, expected_seconds(STAGE_COSTS_3D, sk.nodes2d.shape[0]))
     frame = first_frame(res)
     fit = radius_px = tmap = None
-    if s.fit_branches and frame is not None:
+    if frame is not None:               # frame 1 against its background: branch widths, foreground
         tmap = tree_map(frame, res.outline.mask)
-        if tmap is not None:
+        if tmap is not None and s.fit_branches:
             fit = measure_branches(sk.parents, sk.nodes2d[0], tmap)
             vf = fit_to_video(sk.parents, sk.level, sk.nodes2d[0], fit, s.pipe_exponent)
             radius_px = vf.radius_px
@@ -144,8 +146,14 @@ def build_3d(res: Result, s: Settings | None = None, name: str = "Tree",
                               "trusted": int(vf.trusted.sum()),
                               "tree_share": round(fit.tree_share, 4)}
     tree_px = tmap.tree if tmap is not None else None
+    fg = foreground(frame, res.outline.mask, tmap) if frame is not None and tmap is not None else None
+    if frame is not None:                           # the bark's albedo from the trunk's pixels
+        trunk = trunk_pixels((frame.shape[0], frame.shape[1]), sk.parents, sk.nodes2d[0],
+                             radius_px if radius_px is not None else radius / scale,
+                             fg.mask if fg is not None else None)
+        meta["bark_colour"] = bark_colour(frame, trunk, tree_px, scene_light(frame, res.outline.mask)).meta("albedo")
     tree = add_twigs(tree, s.twigs, parts["details"], tree_px)  # after the motion solve, before the leaves
-    return add_leaves(res, tree, s, frame, tree_px)
+    return add_leaves(res, tree, s, frame, tree_px, fg.mask if fg is not None else None)
 
 
 def first_frame(res: Result) -> np.ndarray | None:
@@ -160,7 +168,7 @@ def first_frame(res: Result) -> np.ndarray | None:
 
 
 def add_leaves(res: Result, tree: Tree3D, s: Settings, frame: np.ndarray | None = None,
-               tree_px: np.ndarray | None = None) -> Tree3D:
+               tree_px: np.ndarray | None = None, fg: np.ndarray | None = None) -> Tree3D:
     """Leaf clusters from the frame-1 Harris points (``tree.leaves``, placed from the tree's
     ``meta["base_px"]`` as :func:`build_3d` records it); the tree unchanged when ``s.leaves`` is
     None or frame 1 cannot be read again. ``frame`` frame 1 if already read."""
@@ -176,5 +184,5 @@ def add_leaves(res: Result, tree: Tree3D, s: Settings, frame: np.ndarray | None 
     points = detect_corners(cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY), mask, s.track)
     # the tree's own base (the branch fit may have moved the trunk onto its centre line)
     tree.leaves = place_leaves(tree, points, frame, np.asarray(tree.meta["base_px"], float), s.leaves,
-                               mask, tree_px)
+                               mask, tree_px, fg)
     return tree

@@ -610,7 +610,7 @@ class Leaves:
 _PALETTE_DECIDUOUS = ((22, 58, 30), (42, 122, 66), (74, 172, 112), (105, 212, 178))
 _PALETTE_AUTUMN = ((24, 40, 96), (28, 70, 172), (40, 112, 222), (96, 176, 248))   # BGR reds, oranges
 #: a backlit crown and its bark: the light reaching the camera through or around them
-BACKLIT_GAIN = 0.3
+BACKLIT_GAIN = 0.12
 _PALETTE_CONIFER = ((28, 56, 24), (50, 94, 44), (72, 126, 66), (96, 152, 104))
 _SUN = _unit(np.array([-0.5, -0.55, 0.7]))          # from upper left, in front of the tree
 
@@ -1131,6 +1131,7 @@ def render_background(cfg: SynthConfig) -> np.ndarray:
     cloud = 0.65 * _noise_field(rng, h, w, (3, 5)) + 0.35 * _noise_field(rng, h, w, (8, 12))
     cloud = np.clip((cloud - 0.55) / 0.25, 0, 1)[..., None] * (1 - tt) ** 0.4 * 0.85
     img = img * (1 - cloud) + np.float32(246) * cloud
+    sky_only = img.copy()
     xs = np.arange(w)
     knots = rng.random(12)
     hill_top = gv - h * (0.03 + 0.05 * np.interp(xs, np.linspace(0, w - 1, 12), knots))
@@ -1150,6 +1151,9 @@ def render_background(cfg: SynthConfig) -> np.ndarray:
     _draw_fence(img, rng, gv, s)
     _draw_house(img, gv, s)
     _draw_rock(img, rng, gv, s)
+    if cfg.light == "backlit":         # against the light everything but the sky is in shadow
+        shade = hill | ground | (np.abs(img.astype(np.float32) - sky_only).max(2) > 12)
+        img[shade] = (img[shade] * (2 * BACKLIT_GAIN)).astype(np.uint8)
     return img
 
 

@@ -80,15 +80,19 @@ def test_a_bad_leaf_colour_names_the_choices(value):
 SEED = 2        # held out: the decision's thresholds were set on seeds 0 and 1
 
 
-def _video_leaf_colour(variant: str, folder: str) -> np.ndarray:
-    """sRGB median of frame 1's true leaf pixels."""
+def _video_colours(variant: str, folder: str) -> tuple[np.ndarray, np.ndarray]:
+    """sRGB medians of frame 1's true leaf pixels and of its trunk below the crown (branch
+    pixels under the lowest leaf)."""
     from tree_from_video.sample_videos import synth_tree as st
     lab = st.render_labels(st.build_scene(st.config_for(variant, seed=SEED)), 0)
     cap = cv2.VideoCapture(os.path.join(folder, "video.mp4"))
     ok, f0 = cap.read()
     cap.release()
     assert ok
-    return np.median(f0[lab == st.LABEL_LEAF][:, ::-1] / 255.0, 0)
+    leaf = lab == st.LABEL_LEAF
+    trunk = (lab == st.LABEL_BRANCH) & (np.arange(lab.shape[0])[:, None] > np.flatnonzero(leaf.any(1)).max())
+    rgb = f0[..., ::-1] / 255.0
+    return np.median(rgb[leaf], 0), np.median(rgb[trunk], 0)
 
 
 @pytest.fixture(scope="module")
@@ -104,7 +108,7 @@ def look(tmp_path_factory):
         s = plain_settings(frames="0:12")
         res = pipeline.run(os.path.join(folder, "video.mp4"), os.path.join(folder, "outline.json"), s)
         tree = pipeline.build_3d(res, s)
-        out[variant] = (_video_leaf_colour(variant, folder), tree)
+        out[variant] = (*_video_colours(variant, folder), tree)
     return out
 
 
@@ -117,7 +121,7 @@ def test_leaf_albedo_on_held_out_samples(look, capsys):
     front-lit: within 10 % of the video's colour; autumn: its hue within 10°. ``tree3d``'s
     per-cluster ``leaf_colour`` median is the colour recorded in meta."""
     rows = []
-    for variant, (video, tree) in look.items():
+    for variant, (video, _, tree) in look.items():
         used = np.median(tree.leaves.colour, 0)
         rec = tree.meta["leaf_colour"]
         np.testing.assert_allclose(rec["colour"], used, atol=0.02)
@@ -133,3 +137,29 @@ def test_leaf_albedo_on_held_out_samples(look, capsys):
             assert rec["source"] == "albedo" and abs(_hue(used) - _hue(video)) <= 10.0
     with capsys.disabled():
         print("\nleaf colour (held-out seed 2):\n  " + "\n  ".join(rows))
+
+
+def test_bark_albedo_on_held_out_samples(look, capsys):
+    """The bark's colour from the trunk's own pixels: within 15 % of the video's trunk colour where
+    it is lit (front-lit, autumn), the default bark where it is a silhouette (backlit)."""
+    rows = []
+    for variant, (_, trunk, tree) in look.items():
+        rec = tree.meta["bark_colour"]
+        used = np.asarray(rec["colour"])
+        rel = float(np.linalg.norm(used - trunk) / np.linalg.norm(trunk))
+        rows.append(f"{variant:9} video trunk {np.round(trunk, 3)} -> bark {np.round(used, 3)} ({rec['source']}, "
+                    f"differs by {rel:.1%})")
+        if variant == "backlit":
+            assert rec["source"] == "default"
+            np.testing.assert_allclose(used, albedo.BARK_SRGB)
+        else:
+            assert rec["source"] == "albedo" and rel <= 0.15, rows[-1]
+    with capsys.disabled():
+        print("\nbark colour (held-out seed 2):\n  " + "\n  ".join(rows))
+
+
+def test_the_bark_material_ramp_is_centred_on_the_bark_colour():
+    from tree_from_video.operators.scene import materials
+    dark, light = (np.asarray(c[:3]) for c in materials.bark_ramp((0.5, 0.4, 0.3)))
+    np.testing.assert_allclose(0.5 * (dark + light), albedo.srgb_to_linear(np.array([0.5, 0.4, 0.3])), rtol=1e-6)
+    assert materials.bark_ramp(None) == materials.BARK_RAMP

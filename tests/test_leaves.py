@@ -133,7 +133,9 @@ def test_clusters_sit_in_the_crown_and_density_trades_polygons(leafy):
           f"dark share {a.dark.mean():.2f}")
     assert inside >= 0.98
     assert a.polygons == a.count * a.cards
-    assert b.count == pytest.approx(0.5 * a.count, abs=2)
+    # half the seeds; the clusters added where the cards leave the foliage bare (fewer with the
+    # larger template) keep the crown covered, so the count falls by less than half
+    assert 0.5 * a.count - 2 <= b.count <= 0.7 * a.count
     assert 1.2 <= b.radius / a.radius <= 1.7                 # the template grows as ~1/√density
     assert 0.35 <= a.dark.mean() <= 0.65
     # nothing on the trunk below the crown: the lowest cluster is above the first fork's height

@@ -193,3 +193,71 @@ def leaf_colours(sampled: np.ndarray, mode: str = "albedo", light: SceneLight | 
     out = _spread(target, sampled)
     return LeafColour(out.astype(np.float32), np.median(out, 0), "foliage",
                       f"{' and '.join(faults)} foliage in the video, a plausible foliage colour instead: " + facts)
+
+
+# ----------------------------------------------------------------------------- bark
+
+#: the bark's albedo where the video's is unreliable, sRGB (the bark material's former ramp mean)
+BARK_SRGB = np.array([0.48, 0.45, 0.42])
+#: the trunk is sampled along the edges whose child end is at least this share of the widest radius
+TRUNK_SHARE = 0.5
+#: bark is darker than foliage (lit bark 0.04–0.1 of linear luminance, a seventh to a fifteenth of
+#: the sky beside it; a backlit trunk 0.002–0.01): its own dark and silhouette limits
+BARK_MIN_LUMINANCE = 0.01
+BARK_SILHOUETTE_RATIO = 0.03
+
+
+def trunk_pixels(shape: tuple[int, int], parents: np.ndarray, nodes_px: np.ndarray,
+                 radius_px: np.ndarray, foreground: np.ndarray | None = None) -> np.ndarray:
+    """``(H, W)`` bool: the thick branches' tubes in frame 1 — every edge whose child's radius
+    ``radius_px (N,)`` is at least :data:`TRUNK_SHARE` of the widest, drawn as a line of that
+    width (0.6 × the diameter, so the edge's blur and the sky beside it stay out) between
+    ``nodes_px (N, 2)``. With frame 1's ``foreground (H, W)``, only the lower half of the rows
+    below the crown (below the lowest row where the foreground is wider than 8 trunk radii),
+    when at least 40 pixels are there: a limb inside a dense crown is seen through leaves, and
+    sampled the foliage's colour as the bark's (front-lit dense crown: green bark)."""
+    out = np.zeros(shape, np.uint8)
+    r = np.asarray(radius_px, np.float64)
+    if len(r) == 0 or not np.isfinite(r).any():
+        return out.astype(bool)
+    rmax = float(np.nanmax(r))
+    for c in np.flatnonzero((np.asarray(parents) >= 0) & (np.nan_to_num(r) >= TRUNK_SHARE * rmax)):
+        a, b = nodes_px[parents[c]], nodes_px[c]
+        w = max(1, int(round(1.2 * r[c])))
+        cv2.line(out, (int(round(a[0])), int(round(a[1]))), (int(round(b[0])), int(round(b[1]))), 1, w)
+    tube = out.astype(bool)
+    if foreground is not None:
+        wide = np.flatnonzero(np.asarray(foreground, bool).sum(1) > 8 * rmax)
+        if len(wide):
+            below = tube & (np.arange(shape[0]) > wide.max())[:, None]
+            if below.sum() >= 40:      # its lower half: a crown tapering to a point stays out
+                rows = np.flatnonzero(below.any(1))
+                return below & (np.arange(shape[0]) >= 0.5 * (rows[0] + rows[-1]))[:, None]
+    return tube
+
+
+def bark_colour(frame_bgr: np.ndarray, trunk: np.ndarray, tree_px: np.ndarray | None,
+                light: SceneLight | None = None) -> LeafColour:
+    """The bark's albedo from frame 1's trunk pixels ``trunk (H, W)`` (:func:`trunk_pixels`, only
+    those that are the tree's, ``tree_px``, when known): their median colour corrected for the
+    scene's ``light``; where it is dark or backlit (as :func:`leaf_colours` decides, with bark's
+    limits :data:`BARK_MIN_LUMINANCE` and :data:`BARK_SILHOUETTE_RATIO`; grey bark is bark)
+    :data:`BARK_SRGB`. Returned as a :class:`LeafColour` of one colour."""
+    sel = np.asarray(trunk, bool)
+    if tree_px is not None and (sel & np.asarray(tree_px, bool)).sum() >= 20:
+        sel = sel & np.asarray(tree_px, bool)
+    light = light or SceneLight()
+    if sel.sum() < 20:
+        return LeafColour(BARK_SRGB[None].astype(np.float32), BARK_SRGB.copy(), "default",
+                          f"too few trunk pixels in frame 1 ({int(sel.sum())})")
+    med = np.median(frame_bgr[sel][:, ::-1].astype(np.float64), axis=0) / 255.0
+    col = light.correct(med)
+    lum = float(luminance(srgb_to_linear(col)))
+    backlit = light.ring is not None and lum < BARK_SILHOUETTE_RATIO * light.ring
+    facts = (f"corrected luminance {lum:.3f} (at least {BARK_MIN_LUMINANCE}"
+             + (f" and {BARK_SILHOUETTE_RATIO:g} of the background's {light.ring:.3f}" if light.ring is not None else "")
+             + f"); exposure x{light.gain:.2f}")
+    if lum < BARK_MIN_LUMINANCE or backlit:
+        return LeafColour(BARK_SRGB[None].astype(np.float32), BARK_SRGB.copy(), "default",
+                          "a dark or backlit trunk in the video, a plausible bark colour instead: " + facts)
+    return LeafColour(col[None].astype(np.float32), col, "albedo", "the trunk's colour as albedo: " + facts)

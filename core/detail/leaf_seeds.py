@@ -28,6 +28,7 @@ from .leaf_clusters import (
     check_leaf_params,
     make_clusters,
 )
+from .leaf_cover import card_footprint, uncovered_sites
 
 
 @dataclass
@@ -118,7 +119,7 @@ def _window(y: np.ndarray, x: np.ndarray, margin: int, shape: tuple) -> tuple[tu
 
 def place_leaves(tree, points: np.ndarray, frame_bgr: np.ndarray, base_px: np.ndarray,
                  params: LeafParams | None = None, mask: np.ndarray | None = None,
-                 tree_px: np.ndarray | None = None):
+                 tree_px: np.ndarray | None = None, foreground: np.ndarray | None = None):
     """Leaf clusters for ``tree`` (a :class:`Tree3D` in metres with ``meta["metres_per_px"]`` and,
     if known, ``meta["envelope"]``) from frame-1 Harris ``points (S, 2)`` px on ``frame_bgr``;
     ``base_px`` the trunk base in frame 1 (px). Each kept seed becomes a cluster on the bone of
@@ -154,7 +155,8 @@ def place_leaves(tree, points: np.ndarray, frame_bgr: np.ndarray, base_px: np.nd
         points, dark = points[foliage], dark[foliage]
     points, dark = near_branches(points, dark, tree, base_px, scale)
     if mask is not None and p.fill:
-        extra = fill_seeds(points, frame_bgr, np.asarray(mask, bool), 2 * median_spacing(points), p.seed)
+        extra = fill_seeds(points, frame_bgr, np.asarray(mask, bool), 2 * median_spacing(points), p.seed,
+                           None if foreground is None else np.asarray(foreground, bool))
         if len(extra):
             ep = image_to_plane(extra.astype(np.float64), np.asarray(base_px, float)) * scale
             extra = extra[~on_bark(ep[:, [0, 2]], tree.parents, rest[:, [0, 2]], tree.radius)]
@@ -187,6 +189,10 @@ def place_leaves(tree, points: np.ndarray, frame_bgr: np.ndarray, base_px: np.nd
         if tree_px is not None:                            # the tree's own pixels in frame 1
             own = np.asarray(tree_px, bool) & np.asarray(mask, bool)
             kr = max(1, int(round(TREE_PX_CLOSE * radius / scale)))       # px
+            if foreground is not None:
+                fg = np.asarray(foreground, bool) & np.asarray(mask, bool)
+                if (own & fg).sum() < SILHOUETTE_SHARE * fg.sum():   # the colour test missed the crown
+                    own = fg
             region = cv2.morphologyEx(own.astype(np.uint8), cv2.MORPH_CLOSE,
                                       cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * kr + 1,) * 2)) > 0
             # a corner sits on its tuft's edge: the cluster goes to the tuft's centre
@@ -194,10 +200,36 @@ def place_leaves(tree, points: np.ndarray, frame_bgr: np.ndarray, base_px: np.nd
             pos[:, [0, 2]] = image_to_plane(pts, np.asarray(base_px, float))[:, [0, 2]] * scale
         else:
             region = foliage_region(points, np.asarray(mask, bool), median_spacing(points))
+            own = region
         dist = cv2.distanceTransform(region.astype(np.uint8), cv2.DIST_L2, 5)
         x = np.clip(np.round(pts[:, 0]).astype(int), 0, mask.shape[1] - 1)
         y = np.clip(np.round(pts[:, 1]).astype(int), 0, mask.shape[0] - 1)
         size = np.clip(dist[y, x] * scale / radius, 0.25, 1.0).astype(np.float32)
+        if p.fill:                                         # clusters where the foliage is still bare
+            # the foliage's own pixels (not the gaps the closing bridged), bark left out
+            target = own & ~bark_pixels(region.shape, tree, np.asarray(base_px, float), scale)
+            d_own = cv2.distanceTransform(target.astype(np.uint8), cv2.DIST_L2, 5)
+            for _ in range(TOP_UP_ROUNDS):
+                if len(pts) >= p.max_clusters:
+                    break
+                axis = pos - pos.mean(0)
+                axis /= np.maximum(np.linalg.norm(axis, axis=1, keepdims=True), 1e-12)
+                cover = card_footprint(region.shape, pos, axis, size, radius, 0.55 * radius, p.cards, p.seed,
+                                       np.asarray(base_px, float), scale)
+                new = uncovered_sites(target, cover, radius / scale)[:p.max_clusters - len(pts)]
+                if len(new) == 0:
+                    break
+                npos = image_to_plane(new.astype(np.float64), np.asarray(base_px, float)) * scale
+                nnode = candidates[cKDTree(rest[candidates][:, [0, 2]]).query(npos[:, [0, 2]])[1]]
+                ndark = seed_intensity(gray, new) < np.median(intensity)
+                lim = env.depth_limit(npos) if env is not None else np.full(len(npos), limit.max())
+                ny0 = np.clip(rest[nnode, 1], -lim, lim)
+                npos[:, 1] = ny0 + rng.uniform(0.3, 0.9, len(npos)) * (np.where(ndark, lim, -lim) - ny0)
+                nx = np.clip(np.round(new[:, 0]).astype(int), 0, mask.shape[1] - 1)
+                ny = np.clip(np.round(new[:, 1]).astype(int), 0, mask.shape[0] - 1)
+                pts, pos = np.concatenate([pts, new]), np.concatenate([pos, npos])
+                node, dark = np.concatenate([node, nnode]), np.concatenate([dark, ndark])
+                size = np.concatenate([size, np.clip(d_own[ny, nx] * scale / radius, 0.25, 1.0).astype(np.float32)])
     colour = leaf_colours(sample_colour(frame_bgr, pts, tree_px=tree_px), p.colour, scene_light(frame_bgr, mask),
                           reference=foliage_colour(frame_bgr, pts, tree_px, mask, radius / scale))
     tree.meta["leaf_colour"] = colour.meta(p.colour)
@@ -222,6 +254,15 @@ def foliage_colour(frame_bgr: np.ndarray, points: np.ndarray, tree_px: np.ndarra
     if len(px) < 20:
         return None
     return np.median(px[:, ::-1].astype(np.float64), axis=0) / 255.0
+
+
+#: rounds of clusters added where the cards leave frame 1's foliage uncovered (leaf_cover)
+TOP_UP_ROUNDS = 2
+
+#: when frame 1's colour test finds less than this share of the graph cut's foreground, the crown
+#: is a silhouette the colour test cannot see (backlit: 0.2–0.5) and the clusters fill the cut's
+#: foreground instead (lit crowns: 0.9 and more, where the colour test's finer edge is kept)
+SILHOUETTE_SHARE = 0.7
 
 
 def centre_on_pixels(points: np.ndarray, pixels: np.ndarray, radius_px: int) -> np.ndarray:
@@ -273,6 +314,24 @@ def near_branches(points: np.ndarray, dark: np.ndarray, tree, base_px, scale: fl
     return (points[keep], dark[keep]) if keep.any() else (points, dark)
 
 
+def bark_pixels(shape: tuple[int, int], tree, base_px: np.ndarray, scale: float, margin: float = 1.5) -> np.ndarray:
+    """``(H, W)`` bool: frame 1's pixels within ``margin`` × the radius of a thick branch's axis
+    (radius ≥ ``BARK_RADIUS_SHARE`` of the trunk's), the image-space twin of :func:`on_bark`;
+    ``scale`` metres per px."""
+    from ..topology import edges_of
+    from ..tree3d import plane_to_image
+    out = np.zeros(shape, np.uint8)
+    r = np.asarray(tree.radius, np.float64)
+    e = edges_of(tree.parents)
+    e = e[r[e[:, 1]] >= BARK_RADIUS_SHARE * r.max()] if len(e) else e
+    if len(e) == 0:
+        return out.astype(bool)
+    px = plane_to_image(tree.nodes3d[0].astype(np.float64) / scale, base_px)
+    for (a, b), w in zip(np.round(px[e] * 16).astype(np.int64), 2 * margin * r[e[:, 1]] / scale):
+        cv2.line(out, (int(a[0]), int(a[1])), (int(b[0]), int(b[1])), 1, max(1, int(round(w))), cv2.LINE_8, 4)
+    return out.astype(bool)
+
+
 def on_bark(points: np.ndarray, parents: np.ndarray, nodes: np.ndarray, radius: np.ndarray,
             margin: float = 1.5) -> np.ndarray:
     """``(S,)`` bool: the image-plane point ``points (S, 2)`` lies within ``margin`` × the branch
@@ -293,15 +352,26 @@ def on_bark(points: np.ndarray, parents: np.ndarray, nodes: np.ndarray, radius: 
 
 
 def fill_seeds(points: np.ndarray, frame_bgr: np.ndarray, mask: np.ndarray, step: float,
-               seed: int = 0) -> np.ndarray:
+               seed: int = 0, tree_px: np.ndarray | None = None) -> np.ndarray:
     """Extra seeds ``(E, 2)`` px where the crown has foliage but no Harris corner (smooth, shaded
-    inner crown): grid points ``step`` px apart inside ``mask``, farther than ``1.5·step`` from
-    every seed ``points (S, 2)``, whose colour (CIELAB) is nearer to the seeds' colours than to
-    the background's (pixels outside the outline, near it)."""
+    inner crown, a silhouette against the light): grid points ``step`` px apart inside ``mask``,
+    farther than ``1.5·step`` from every seed ``points (S, 2)``, on frame 1's foreground
+    ``tree_px (H, W)`` (:mod:`..reconstruct.foreground`) when given, else whose colour (CIELAB)
+    is nearer to the seeds' colours than to the background's (pixels outside the outline, near
+    it). On a backlit crown the seeds are corners on its edge, half sky, and the colour test
+    kept the inner crown out (rendered silhouette IoU 0.45)."""
     h, w = mask.shape
     if len(points) == 0 or not mask.any() or mask.all():
         return np.zeros((0, 2), np.float32)
     step = max(2.0, float(step))
+    if tree_px is not None:
+        ys, xs = np.mgrid[step / 2:h:step, step / 2:w:step]
+        cand = np.stack([xs.ravel(), ys.ravel()], 1)
+        ci = cand.astype(int)
+        cand = cand[mask[ci[:, 1], ci[:, 0]] & tree_px[ci[:, 1], ci[:, 0]]]
+        if len(cand) == 0:
+            return np.zeros((0, 2), np.float32)
+        return cand[cKDTree(points).query(cand)[0] > 1.5 * step].astype(np.float32)
     lab = cv2.cvtColor(cv2.GaussianBlur(frame_bgr, (0, 0), 1.5), cv2.COLOR_BGR2LAB)   # uint8; float where sampled
     ys, xs = np.mgrid[step / 2:h:step, step / 2:w:step]
     cand = np.stack([xs.ravel(), ys.ravel()], 1)

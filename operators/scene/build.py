@@ -107,7 +107,8 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
             t = time.perf_counter()
             material = (materials or {}).get("bark")
             if material is None:
-                material = created.add(bpy.data.materials, mats.bark_material(names["material"], branch_params.bark))
+                material = created.add(bpy.data.materials, mats.bark_material(
+                    names["material"], branch_params.bark, (tree.meta.get("bark_colour") or {}).get("colour")))
             mesh_obj = branch_mesh.build_mesh(tree, rest, rig, coll, names["mesh"], material, branch_params, created)
             timings["mesh"] = time.perf_counter() - t
         leaf_obj = leaf_mat = None

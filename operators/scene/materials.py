@@ -8,6 +8,7 @@ from __future__ import annotations
 import bpy
 import numpy as np
 
+from ...core.detail.albedo import srgb_to_linear
 from ...core.errors import InputError
 
 TEXTURE_SIZE = 128
@@ -29,15 +30,17 @@ def principled_nodes(mat):
     return nt, nt.nodes.new("ShaderNodeOutputMaterial"), nt.nodes.new("ShaderNodeBsdfPrincipled")
 
 
-def bark_material(name: str, kind: str = "none") -> bpy.types.Material:
+def bark_material(name: str, kind: str = "none", colour=None) -> bpy.types.Material:
     """A Principled BSDF bark, procedural and UV-mapped (the bark follows the bending branches):
-    brown-grey noise colour; bump from Voronoi cells plus, for ``kind`` "smooth"/"rough", furrows
+    noise colour around ``colour`` (sRGB, the tree's ``meta["bark_colour"]``; None: a brown-grey
+    default), :func:`bark_ramp`; bump from Voronoi cells plus, for ``kind`` "smooth"/"rough", furrows
     along the branch (a distorted Wave texture in bands across u, i.e. running along v), with the
     strengths of :data:`BARK_LOOK`. The caller removes it on failure."""
     strength, furrow = BARK_LOOK.get(kind, BARK_LOOK["none"])
+    ramp_ends = bark_ramp(colour)
     mat = bpy.data.materials.new(name)
     try:
-        mat.diffuse_color = bark_colour()                    # solid-view colour: the bark's own
+        mat.diffuse_color = bark_colour(colour)              # solid-view colour: the bark's own
         mat.roughness = 0.9
         nt, out, bsdf = principled_nodes(mat)
         coord = nt.nodes.new("ShaderNodeTexCoord")
@@ -52,7 +55,7 @@ def bark_material(name: str, kind: str = "none") -> bpy.types.Material:
         noise.inputs["Scale"].default_value = 3.0
         noise.inputs["Detail"].default_value = 8.0
         voronoi.inputs["Scale"].default_value = 5.0
-        ramp.color_ramp.elements[0].color, ramp.color_ramp.elements[1].color = BARK_RAMP
+        ramp.color_ramp.elements[0].color, ramp.color_ramp.elements[1].color = ramp_ends
         bump.inputs["Strength"].default_value = strength
         bsdf.inputs["Roughness"].default_value = 0.9
         link = nt.links.new
@@ -86,10 +89,21 @@ def bark_material(name: str, kind: str = "none") -> bpy.types.Material:
     return mat
 
 
-def bark_colour() -> tuple:
+def bark_ramp(colour=None) -> tuple:
+    """The bark's colour ramp, dark and light end (linear RGBA): :data:`BARK_RAMP`, or for
+    ``colour`` (sRGB 0..1, the video's bark albedo) the same ramp scaled so its middle is that
+    colour (dark end 0.35 ×, light end 1.65 × it, the default ramp's proportions)."""
+    if colour is None:
+        return BARK_RAMP
+    mid = srgb_to_linear(np.clip(np.asarray(colour, np.float64), 0.0, 1.0))
+    dark, light = (np.clip(mid * k, 0.0, 1.0) for k in (0.35, 1.65))
+    return (*dark.tolist(), 1.0), (*light.tolist(), 1.0)
+
+
+def bark_colour(colour=None) -> tuple:
     """Linear RGBA of the bark as rendered on average: the middle of its colour ramp
-    (:data:`BARK_RAMP`), the bark material's solid-view colour."""
-    dark, light = (np.asarray(c, np.float64) for c in BARK_RAMP)
+    (:func:`bark_ramp` of ``colour``), the bark material's solid-view colour."""
+    dark, light = (np.asarray(c, np.float64) for c in bark_ramp(colour))
     return tuple(float(c) for c in 0.5 * (dark + light))
 
 
@@ -203,6 +217,3 @@ def material_images(mat) -> list:
         return []
     return [n.image for n in mat.node_tree.nodes if n.type == "TEX_IMAGE" and n.image is not None]
 
-
-def srgb_to_linear(c: np.ndarray) -> np.ndarray:
-    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)

@@ -1,0 +1,74 @@
+"""Frame 1's foreground (core/reconstruct/foreground.py) and the leaf clusters' cover of it
+(core/detail/leaf_cover.py), on hand-made frames whose answer is known."""
+import cv2
+import numpy as np
+
+from tree_from_video.core.detail.leaf_cover import card_footprint, uncovered_sites
+from tree_from_video.core.reconstruct.branch_fit import tree_map
+from tree_from_video.core.reconstruct.foreground import foreground
+
+
+def _backlit(h=240, w=320, seed=0):
+    """A dark crown (a disk with a few sky holes) on a trunk against a bright sky, the ground in
+    shadow as dark as the crown: the outline, the true mask and the frame."""
+    rng = np.random.default_rng(seed)
+    img = np.zeros((h, w, 3), np.float32)
+    img[:] = (232, 234, 236)                                   # overcast sky (BGR)
+    img[int(0.8 * h):] = (16, 22, 18)                          # shadowed ground
+    truth = np.zeros((h, w), np.uint8)
+    cv2.circle(truth, (w // 2, int(0.38 * h)), int(0.3 * h), 1, -1)
+    cv2.rectangle(truth, (w // 2 - 6, int(0.6 * h)), (w // 2 + 6, int(0.8 * h)), 1, -1)
+    for _ in range(4):                                         # sky seen through the crown
+        cv2.circle(truth, (int(w / 2 + rng.integers(-40, 40)), int(0.38 * h + rng.integers(-30, 30))), 6, 0, -1)
+    truth = truth.astype(bool)
+    img[truth] = (14, 24, 12)
+    img += rng.normal(0, 2.0, img.shape)
+    outline = np.zeros((h, w), np.uint8)
+    cv2.ellipse(outline, (w // 2, int(0.45 * h)), (int(0.36 * h), int(0.42 * h)), 0, 0, 360, 1, -1)
+    return outline.astype(bool), truth, np.clip(img, 0, 255).astype(np.uint8)
+
+
+def _iou(a, b):
+    return (a & b).sum() / max((a | b).sum(), 1)
+
+
+def test_the_graph_cut_finds_a_backlit_crown_the_colour_test_loses_against_dark_ground():
+    outline, truth, img = _backlit()
+    colour = tree_map(img, outline).tree & outline
+    fg = foreground(img, outline)
+    assert fg is not None and fg.method == "graph cut"
+    t = truth & outline
+    print(f"\nIoU: colour test {_iou(colour, t):.3f}, graph cut {_iou(fg.mask, t):.3f}")
+    assert _iou(fg.mask, t) >= 0.95
+    assert _iou(fg.mask, t) > _iou(colour, t) + 0.1
+    assert fg.share == fg.mask.sum() / outline.sum()
+
+
+def test_an_outline_filling_the_frame_has_no_background_to_compare_with():
+    img = np.full((60, 80, 3), 90, np.uint8)
+    assert foreground(img, np.ones((60, 80), bool)) is None
+
+
+def test_a_card_footprint_lies_within_the_cluster_and_grows_with_its_size():
+    base, scale = np.array([100.0, 180.0]), 0.01           # 1 cm per px; the base at (100, 180)
+    pos = np.array([[0.0, 0.0, 1.0]])                      # 1 m up: image (100, 80)
+    axis = np.array([[0.0, 0.0, 1.0]])
+    small = card_footprint((200, 200), pos, axis, np.array([0.5]), 0.2, 0.11, 16, 0, base, scale)
+    full = card_footprint((200, 200), pos, axis, np.array([1.0]), 0.2, 0.11, 16, 0, base, scale)
+    ys, xs = np.nonzero(full)
+    assert np.hypot(xs - 100, ys - 80).max() <= 20 + 1    # within the 0.2 m radius (+1 px of raster)
+    ys, xs = np.nonzero(small)
+    assert 0 < small.sum() < full.sum() and np.hypot(xs - 100, ys - 80).max() <= 10 + 1   # half the size
+    assert 0.15 <= full.sum() / (np.pi * 20 ** 2) <= 1.0    # 16 blades cover part of the disk
+
+
+def test_uncovered_sites_go_where_the_target_is_bare_one_per_cell():
+    target = np.zeros((100, 100), bool)
+    target[20:80, 20:80] = True
+    covered = np.zeros_like(target)
+    covered[:, :50] = True                                 # the left half is covered
+    sites = uncovered_sites(target, covered, 10.0)
+    assert len(sites) > 0 and (sites[:, 0] >= 50).all()
+    cells = {(int(x // 10), int(y // 10)) for x, y in sites}
+    assert len(cells) == len(sites)                        # one per 10 px cell
+    assert len(uncovered_sites(target, target, 10.0)) == 0
