@@ -320,7 +320,8 @@ def _reconstruct(args, gen) -> int:
         atomic_savez(os.path.join(args.out, "result.npz"), **arrays)
     overlay.write_overlays(res.info, res.start, res.skeleton, res.tracks,
                            os.path.join(args.out, "overlay.png"),
-                           None if args.no_video else os.path.join(args.out, "overlay.mp4"), cb)
+                           None if args.no_video else os.path.join(args.out, "overlay.mp4"), cb,
+                           res.foreground.mask if res.foreground is not None else None)
     if outputs is not None and gen is None:          # with --generate the exports are per generated tree
         outputs.write_outputs(tree, args.out, wanted, overwrite=args.force, leaf_image=args.leaf_image,
                               report=lambda m: sys.stderr.write(m + "\n"))

@@ -31,11 +31,12 @@ from .reconstruct.run import (
     ReconstructSettings,
     Result,
     check_reconstruct,
+    frame_one,
     track_video,
 )
 from .reconstruct.run import run as run_2d
 from .reconstruct.tracks import detect_corners
-from .reconstruct.video import iter_frames, open_video, parse_frame_range
+from .reconstruct.video import open_video, parse_frame_range
 from .tree3d import Tree3D, image_to_plane, pipe_radii, uneven_times
 
 __all__ = ["SKELETON_KINDS", "STAGE_COSTS_3D", "Result", "Settings", "add_leaves", "build_3d", "check_settings",
@@ -146,7 +147,9 @@ def build_3d(res: Result, s: Settings | None = None, name: str = "Tree",
                               "trusted": int(vf.trusted.sum()),
                               "tree_share": round(fit.tree_share, 4)}
     tree_px = tmap.tree if tmap is not None else None
-    fg = foreground(frame, res.outline.mask, tmap) if frame is not None and tmap is not None else None
+    fg = res.foreground
+    if fg is None and frame is not None and tmap is not None:
+        fg = foreground(frame, res.outline.mask, tmap)
     if frame is not None:                           # the bark's albedo from the trunk's pixels
         trunk = trunk_pixels((frame.shape[0], frame.shape[1]), sk.parents, sk.nodes2d[0],
                              radius_px if radius_px is not None else radius / scale,
@@ -158,13 +161,7 @@ def build_3d(res: Result, s: Settings | None = None, name: str = "Tree",
 
 def first_frame(res: Result) -> np.ndarray | None:
     """Frame 1 of the run (BGR uint8, the outline's size), or None when it cannot be read again."""
-    frame = next(iter_frames(res.info, res.start, res.start + 1), None)
-    if frame is None:
-        return None
-    mask = res.outline.mask
-    if frame.shape[:2] != mask.shape:
-        frame = cv2.resize(frame, mask.shape[::-1], interpolation=cv2.INTER_AREA)
-    return frame
+    return frame_one(res.info, res.start, res.outline.mask.shape)
 
 
 def add_leaves(res: Result, tree: Tree3D, s: Settings, frame: np.ndarray | None = None,

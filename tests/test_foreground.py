@@ -5,7 +5,7 @@ import numpy as np
 
 from tree_from_video.core.detail.leaf_cover import card_footprint, uncovered_sites
 from tree_from_video.core.reconstruct.branch_fit import tree_map
-from tree_from_video.core.reconstruct.foreground import foreground
+from tree_from_video.core.reconstruct.foreground import contour_segments, foreground
 
 
 def _backlit(h=240, w=320, seed=0):
@@ -72,3 +72,13 @@ def test_uncovered_sites_go_where_the_target_is_bare_one_per_cell():
     cells = {(int(x // 10), int(y // 10)) for x, y in sites}
     assert len(cells) == len(sites)                        # one per 10 px cell
     assert len(uncovered_sites(target, target, 10.0)) == 0
+
+
+def test_contour_segments_trace_the_mask_edge_in_pairs():
+    m = np.zeros((50, 60), bool)
+    m[10:30, 20:45] = True
+    seg = contour_segments(m)
+    assert len(seg) % 2 == 0 and len(seg) >= 8
+    on_edge = ((seg[:, 0] == 20) | (seg[:, 0] == 44)) | ((seg[:, 1] == 10) | (seg[:, 1] == 29))
+    assert on_edge.all()
+    assert len(contour_segments(np.zeros((5, 5), bool))) == 0

@@ -143,6 +143,11 @@ def test_preview_keeps_tracks_and_skeleton_for_the_clip_editor(addon):
     assert len(nodes) == len(conf) == kept["nodes"].shape[1] and np.all(kept["confidence"][0] == 1.0)
     assert ((conf >= 0) & (conf <= 1)).all() and conf[0] == 1.0 and np.mean(conf >= 0.5) > 0.9   # the base is fixed
     assert clip_overlay.frame_confidence(VIDEO, 10) is None
+    # frame 1's foreground outline, on the run's first frame only, around the tree's base
+    fg = clip_overlay.frame_foreground(VIDEO, 11)
+    assert fg is not None and len(fg) > 50 and len(fg) % 2 == 0 and ((fg >= 0) & (fg <= 1)).all()
+    assert clip_overlay.frame_foreground(VIDEO, 12) is None
+    assert np.abs(fg - [base[0], 1 - base[1]]).sum(1).min() < 0.05
     # only live tracks are kept (8 bytes each): frame t's are rows track_start[t]..track_start[t + 1]
     assert "tracks" not in kept and kept["track_start"][-1] == len(kept["track_xy"])
     assert kept["track_start"][1] - kept["track_start"][0] == len(pts) and len(kept["track_start"]) == 31

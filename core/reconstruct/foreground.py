@@ -68,3 +68,11 @@ def foreground(frame_bgr: np.ndarray, outline: np.ndarray, tmap: TreeMap | None 
         cut = cv2.resize(cut.astype(np.uint8), (w, h), interpolation=cv2.INTER_LINEAR) > 0
     mask = cut & outline
     return Foreground(mask, float(mask.sum() / max(outline.sum(), 1)), "graph cut")
+
+
+def contour_segments(mask: np.ndarray) -> np.ndarray:
+    """The outlines of ``mask (H, W)`` bool (its outer edges and the edges of the sky seen through
+    it) as line segments ``(2K, 2)`` float32 px, endpoints in pairs: what the overlays draw."""
+    contours, _ = cv2.findContours(np.asarray(mask, np.uint8), cv2.RETR_LIST, cv2.CHAIN_APPROX_SIMPLE)
+    segs = [np.stack([c[:, 0], np.roll(c[:, 0], -1, axis=0)], 1).reshape(-1, 2) for c in contours if len(c) > 1]
+    return np.concatenate(segs).astype(np.float32) if segs else np.zeros((0, 2), np.float32)

@@ -33,12 +33,22 @@ def confidence_bins(confidence: np.ndarray) -> np.ndarray:
     return np.where(c < LOW_CONFIDENCE, 0, np.where(c < 0.78, 1, 2))
 
 
-def draw_frame(img: np.ndarray, skel: Skeleton2D, tracks: Tracks, t: int, zoom: int = 1) -> np.ndarray:
+#: BGR of frame 1's foreground outline (the tree's pixels the look is judged against)
+FOREGROUND_COLOUR = (255, 255, 0)
+
+
+def draw_frame(img: np.ndarray, skel: Skeleton2D, tracks: Tracks, t: int, zoom: int = 1,
+               foreground: np.ndarray | None = None) -> np.ndarray:
     """Draw valid tracks (small green dots) and the skeleton at frame ``t`` on a copy of ``img``,
     enlarged ``zoom`` times (small videos stay readable). Edges are coloured by branching level;
     branch points and tips are marked; every node gets a dot coloured by its motion confidence in
-    that frame (red: poorly measured, yellow, green)."""
+    that frame (red: poorly measured, yellow, green). In frame 1 (``t == 0``) with ``foreground
+    (H, W)`` bool (:mod:`.foreground`), its outline in cyan: the tree's pixels the leaves fill."""
     out = cv2.resize(img, None, fx=zoom, fy=zoom, interpolation=cv2.INTER_LINEAR) if zoom > 1 else img.copy()
+    if t == 0 and foreground is not None:
+        fg = cv2.resize(foreground.astype(np.uint8), (out.shape[1], out.shape[0]), interpolation=cv2.INTER_NEAREST)
+        contours, _ = cv2.findContours(fg, cv2.RETR_LIST, cv2.CHAIN_APPROX_SIMPLE)
+        cv2.drawContours(out, contours, -1, FOREGROUND_COLOUR, 1, cv2.LINE_AA)
     cam = tracks.camera[t]
     pts = to_image(tracks.points[t][tracks.valid[t]], cam) * zoom
     for x, y in np.round(pts).astype(int):
@@ -66,14 +76,16 @@ def overlay_zoom(height: int) -> int:
 
 
 def write_overlays(info: VideoInfo, start: int, skel: Skeleton2D, tracks: Tracks, png_path: str,
-                   mp4_path: str | None, progress: ProgressFn | None = None) -> None:
-    """Write ``png_path`` (frame 1) and, if given, ``mp4_path`` (every frame), atomically."""
+                   mp4_path: str | None, progress: ProgressFn | None = None,
+                   foreground: np.ndarray | None = None) -> None:
+    """Write ``png_path`` (frame 1) and, if given, ``mp4_path`` (every frame), atomically; frame 1
+    with the outline of its ``foreground`` (H, W) bool when given."""
     n = tracks.n_frames
     zoom = overlay_zoom(info.height)
     writer = tmp = None
     try:
         for t, frame in enumerate(iter_frames(info, start, start + n)):
-            img = draw_frame(frame, skel, tracks, t, zoom)
+            img = draw_frame(frame, skel, tracks, t, zoom, foreground)
             if t == 0:
                 fd, tmp_png = tempfile.mkstemp(suffix=".png", dir=os.path.dirname(os.path.abspath(png_path)))
                 os.close(fd)

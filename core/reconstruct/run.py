@@ -18,6 +18,7 @@ from ..params import check, param
 from ..progress import ProgressFn, expected_seconds, report, stage_split
 from . import cache
 from .appearance import AppearanceAccumulator, AppearanceMaps
+from .foreground import Foreground, foreground
 from .hierarchy import Hierarchy, HierarchyParams, build_hierarchy
 from .node_motion import confidence_warning
 from .skeleton2d import FOLD_ALPHA, Skeleton2D, paper_skeleton
@@ -65,6 +66,7 @@ class Result:
     hierarchy: Hierarchy
     maps: AppearanceMaps
     skeleton: Skeleton2D
+    foreground: Foreground | None = None      # frame 1's tree pixels (None: frame 1 unreadable)
 
     @property
     def warnings(self) -> list[str]:
@@ -162,4 +164,18 @@ def run(video: str, outline_path, settings: ReconstructSettings | None = None,
     note = confidence_warning(skel.confidence) if skel.confidence is not None else None
     if note:
         skel.warnings.append(note)
-    return Result(info, outline, start, stop, tracks, hier, maps, skel)
+    frame = frame_one(info, start, outline.mask.shape)
+    fg = foreground(frame, outline.mask) if frame is not None else None
+    return Result(info, outline, start, stop, tracks, hier, maps, skel, fg)
+
+
+def frame_one(info: VideoInfo, start: int, shape: tuple[int, ...]) -> np.ndarray | None:
+    """Frame ``start`` (BGR uint8) at ``shape`` (H, W) — the outline's, the processing scale's —
+    or None when it cannot be read again."""
+    import cv2
+    frame = next(iter_frames(info, start, start + 1), None)
+    if frame is None:
+        return None
+    if frame.shape[:2] != tuple(shape[:2]):
+        frame = cv2.resize(frame, (shape[1], shape[0]), interpolation=cv2.INTER_AREA)
+    return frame

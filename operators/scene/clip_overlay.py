@@ -37,7 +37,10 @@ def overlay_arrays(res) -> dict:
     to ``track_start[t + 1]`` (``(F + 1,)``: only live tracks are kept, 8 bytes each — a dense
     (F, P, 2) array of every column was 96 KB a frame for a 1080p clip's 12,000 columns), and
     ``nodes (F, N, 2)``, skeleton ``edges (E, 2)``, frame ``size`` (w, h) of the full video,
-    ``scale``, first frame ``start`` and the nodes' ``confidence (F, N)``."""
+    ``scale``, first frame ``start``, the nodes' ``confidence (F, N)`` and ``foreground (2K, 2)``
+    float32 px, the outline of frame 1's foreground as segment endpoints in pairs (drawn on the
+    first frame)."""
+    from ...core.reconstruct.foreground import contour_segments
     from ...core.reconstruct.overlay import to_image
     tr, sk = res.tracks, res.skeleton
     valid = np.asarray(tr.valid, bool)
@@ -49,7 +52,9 @@ def overlay_arrays(res) -> dict:
                 scale=np.float64(res.info.scale), start=np.int64(res.start),
                 track_xy=np.concatenate(xy).astype(np.float32).reshape(-1, 2), track_start=start,
                 nodes=nodes.astype(np.float32), edges=np.asarray(sk.edges(), np.int32),
-                confidence=np.asarray(conf, np.float32))
+                confidence=np.asarray(conf, np.float32),
+                foreground=(contour_segments(res.foreground.mask) if getattr(res, "foreground", None) is not None
+                            else np.zeros((0, 2), np.float32)))
 
 
 def frame_tracks(data: dict, t: int) -> np.ndarray:
@@ -139,6 +144,16 @@ def frame_geometry(clip_path: str, clip_frame: int):
     return pts, seg
 
 
+def frame_foreground(clip_path: str, clip_frame: int):
+    """The outline of frame 1's foreground as segment endpoints ``(2K, 2)`` in normalized frame
+    coordinates (y up) when ``clip_frame`` is the overlay's first frame, else None (also for an
+    overlay kept before the foreground was measured)."""
+    got = _frame_data(clip_path, clip_frame)
+    if got is None or got[1] != 0 or "foreground" not in got[0] or not len(got[0]["foreground"]):
+        return None
+    return got[2](np.asarray(got[0]["foreground"], np.float64))
+
+
 def _draw():
     import gpu
     from gpu_extras.batch import batch_for_shader
@@ -167,6 +182,10 @@ def _draw():
         shader.uniform_float("color", (1.0, 0.55, 0.1, 1.0))
         batch_for_shader(shader, "LINES", {"pos": (o + seg * scale).tolist()}).draw(shader)
         gpu.state.line_width_set(1.0)
+    fg = frame_foreground(bpy.path.abspath(clip.filepath), space.clip_user.frame_current)
+    if fg is not None:                       # frame 1's foreground: the tree's pixels the leaves fill
+        shader.uniform_float("color", (0.0, 1.0, 1.0, 0.9))
+        batch_for_shader(shader, "LINES", {"pos": (o + fg * scale).tolist()}).draw(shader)
     if conf is not None:                     # nodes by motion confidence: red poorly measured, yellow, green
         from ...core.reconstruct.overlay import CONFIDENCE_COLOURS, confidence_bins
         nodes, c = conf
