@@ -2,9 +2,11 @@
 
 reconstruct/  video + outline → tracks → motion hierarchy → moving 2D skeleton (``Result``,
               ``Skeleton2D``: ``nodes2d (F, N, 2)`` px) → 3D lift (``Lift``: rest nodes, px) → 3D
-              motion (``Motion``: ``nodes (F, N, 3)`` px); branch widths measured in frame 1.
+              motion (``Motion``: ``nodes (F, N, 3)`` px); branch widths measured in frame 1, and
+              frame 1's foreground (``Foreground``: the tree's pixels).
 detail/       a ``Tree3D`` → the same tree with twigs copied from its forks, leaf clusters from
-              frame 1's seeds (``LeafClusters``), and its branch mesh (tubes, bark, curl).
+              frame 1's seeds filling its foreground (``LeafClusters``), leaf and bark colour as
+              albedo, and its branch mesh (tubes, bark, curl).
 generate/     reconstructed ``Tree3D``s → a species (``SpeciesModel``: Dirichlets of shape and
               motion) → new ``Tree3D``s grown in any envelope, swaying by wind or audio; forests.
 

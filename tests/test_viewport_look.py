@@ -72,3 +72,34 @@ def test_replacing_a_tree_keeps_it_unselected_with_hidden_bones(leafy):
     built = build.build_tree(bpy.context, leafy, "Again", replace=True)
     assert not any(ob.select_get() for ob in bpy.context.view_layer.objects)
     assert all(not any(c.is_visible for c in b.collections) for b in built["armature"].data.bones)
+
+
+def test_leaves_are_translucent_in_renders_and_plain_principled_for_exporters(leafy):
+    """EEVEE and Cycles read outputs where the leaf's Principled BSDF is mixed with a Translucent
+    BSDF of its colour (a backlit crown glows), cut out by the leaf's alpha; the output for ALL,
+    which FBX, glTF and USD read, has the Principled BSDF on it directly."""
+    from tree_from_video.operators.scene import materials
+    built = build.build_tree(bpy.context, leafy, "Glow")
+    leaf = built["leaves"].data.materials[0]
+    outs = {n.target: n for n in leaf.node_tree.nodes if n.type == "OUTPUT_MATERIAL"}
+    assert set(outs) == {"ALL", "EEVEE", "CYCLES"}
+    assert outs["ALL"].inputs["Surface"].links[0].from_node.type == "BSDF_PRINCIPLED"
+    for target in ("EEVEE", "CYCLES"):
+        cut = outs[target].inputs["Surface"].links[0].from_node
+        assert cut.type == "MIX_SHADER" and cut.inputs[0].links[0].from_socket.name == "Alpha"
+        assert cut.inputs[1].links[0].from_node.type == "BSDF_TRANSPARENT"
+        lit = cut.inputs[2].links[0].from_node
+        assert lit.inputs[0].default_value == pytest.approx(materials.LEAF_TRANSLUCENCY)
+        assert {lit.inputs[1].links[0].from_node.type, lit.inputs[2].links[0].from_node.type} == \
+            {"BSDF_PRINCIPLED", "BSDF_TRANSLUCENT"}
+
+
+def test_the_bark_takes_the_colour_the_video_gave_it(leafy):
+    """A tree whose ``meta["bark_colour"]`` says grey bark gets a grey ramp centred on it."""
+    import copy
+    tree = copy.copy(leafy)
+    tree.meta = dict(leafy.meta, bark_colour={"mode": "albedo", "colour": [0.5, 0.5, 0.5], "source": "albedo",
+                                              "why": "test"})
+    bark = build.build_tree(bpy.context, tree, "Grey")["material"]
+    want = _linear(np.array([0.5, 0.5, 0.5]))
+    assert np.array(bark.diffuse_color[:3]) == pytest.approx(want, abs=0.005)

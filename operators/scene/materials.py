@@ -203,12 +203,44 @@ def leaf_material(name: str, image_path: str | None = None, tint=(0.3, 0.5, 0.2)
         link(tex.outputs["Alpha"], bsdf.inputs["Alpha"])
         bsdf.inputs["Roughness"].default_value = 0.6
         link(bsdf.outputs["BSDF"], out.inputs["Surface"])
+        out.target = "ALL"                  # what the exporters read: a Principled BSDF on the output
+        translucent_outputs(nt, bsdf, out_sock["Result_Color"], tex.outputs["Alpha"])
     except BaseException:
         bpy.data.materials.remove(mat)
         if img is not None:
             bpy.data.images.remove(img)
         raise
     return mat
+
+
+#: share of the light a leaf passes through to its other side (Translucent BSDF in the render)
+LEAF_TRANSLUCENCY = 0.3
+
+
+def translucent_outputs(nt, bsdf, colour_socket, alpha_socket) -> None:
+    """Material outputs for EEVEE and Cycles in ``nt`` (a leaf's node tree): the Principled ``bsdf``
+    mixed with a Translucent BSDF of the leaf's colour (``LEAF_TRANSLUCENCY`` of it), cut out by
+    the leaf's alpha (a Transparent BSDF outside the blade), so a backlit crown glows as a real one
+    does. The output targeting ALL keeps the plain Principled BSDF: FBX, glTF and USD read that."""
+    tr = nt.nodes.new("ShaderNodeBsdfTranslucent")
+    clear = nt.nodes.new("ShaderNodeBsdfTransparent")
+    lit = nt.nodes.new("ShaderNodeMixShader")
+    cut = nt.nodes.new("ShaderNodeMixShader")
+    lit.inputs[0].default_value = LEAF_TRANSLUCENCY
+    link = nt.links.new
+    link(colour_socket, tr.inputs["Color"])
+    link(bsdf.outputs["BSDF"], lit.inputs[1])
+    link(tr.outputs["BSDF"], lit.inputs[2])
+    link(alpha_socket, cut.inputs[0])                   # alpha 0: transparent, 1: the lit leaf
+    link(clear.outputs["BSDF"], cut.inputs[1])
+    link(lit.outputs["Shader"], cut.inputs[2])
+    for i, node in enumerate((tr, clear, lit, cut)):
+        node.location = (260 * i - 440, -420)
+    for i, target in enumerate(("EEVEE", "CYCLES")):
+        o = nt.nodes.new("ShaderNodeOutputMaterial")
+        o.target = target
+        o.location = (700, -420 - 200 * i)
+        link(cut.outputs["Shader"], o.inputs["Surface"])
 
 
 def material_images(mat) -> list:
