@@ -20,7 +20,7 @@ branch fit keeps reading the colour test).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import cv2
 import numpy as np
@@ -88,14 +88,17 @@ def foreground(frame_bgr: np.ndarray, outline: np.ndarray, tmap: TreeMap | None 
     leaves no background to compare with (it fills the frame). Deterministic: OpenCV's random
     generator (grabCut's k-means) is seeded first."""
     outline = np.asarray(outline, bool)
-    tmap = tmap if tmap is not None else tree_map(frame_bgr, outline)
-    if tmap is None:
-        return None
     h, w = outline.shape
     s = min(1.0, MAX_SIDE / max(h, w))
     small = (max(1, round(w * s)), max(1, round(h * s)))
     img = frame_bgr if s == 1.0 else cv2.resize(frame_bgr, small, interpolation=cv2.INTER_AREA)
     ol = outline if s == 1.0 else cv2.resize(outline.astype(np.uint8), small, interpolation=cv2.INTER_NEAREST) > 0
+    if tmap is None:                   # the whole ring's colour test, at the cut's size (a 4K frame's
+        tmap = tree_map(img, ol)       # every pixel would cost seconds)
+        if tmap is not None and s != 1.0:
+            tmap = replace(tmap, dist=cv2.resize(tmap.dist, (w, h), interpolation=cv2.INTER_NEAREST))
+    if tmap is None:
+        return None
     half = min(img.shape[:2]) >= 2 * LOCAL_MIN_SIDE     # the seeds at half that size (4× fewer pixels)
     if half:
         hs = (img.shape[1] // 2, img.shape[0] // 2)
