@@ -102,6 +102,19 @@ def colour_reference(colours: np.ndarray) -> tuple[cKDTree, np.ndarray]:
     return kd, kd.query(held)[0]
 
 
+def background_ring(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rows and columns ``(B,)``, ``(B,)`` of the background band just outside the outline ``mask
+    (H, W)`` bool: :data:`BAND` of the outline's height wide (at least 3 px); empty for an empty
+    mask."""
+    ys, _ = np.nonzero(mask)
+    if len(ys) == 0:
+        return ys, ys
+    band_px = max(3, int(round(BAND * float(ys.max() - ys.min() + 1))))
+    near = cv2.dilate(mask.astype(np.uint8), cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * band_px + 1,) * 2)) > 0
+    by, bx = np.nonzero(near & ~mask)
+    return by, bx
+
+
 def tree_map(frame_bgr: np.ndarray, mask: np.ndarray, seed: int = 0,
              max_samples: int = 4000, lab: np.ndarray | None = None) -> TreeMap | None:
     """Frame 1's pixels against the background in a band just outside the outline ``mask (H, W)``:
@@ -111,13 +124,7 @@ def tree_map(frame_bgr: np.ndarray, mask: np.ndarray, seed: int = 0,
     outline leaves no background band (it fills the frame)."""
     mask = np.asarray(mask, bool)
     h, w = mask.shape
-    ys, _ = np.nonzero(mask)
-    if len(ys) == 0:
-        return None
-    size = float(ys.max() - ys.min() + 1)
-    band_px = max(3, int(round(BAND * size)))
-    near = cv2.dilate(mask.astype(np.uint8), cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * band_px + 1,) * 2)) > 0
-    by, bx = np.nonzero(near & ~mask)
+    by, bx = background_ring(mask)
     if len(by) < 50:
         return None
     if lab is None:

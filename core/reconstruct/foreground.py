@@ -26,7 +26,7 @@ import cv2
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .branch_fit import BAND, TreeMap, frame_lab, tree_map
+from .branch_fit import TreeMap, background_ring, frame_lab, tree_map
 
 #: the graph cut works on frame 1 scaled so its larger side is at most this many px
 MAX_SIDE = 640
@@ -62,10 +62,7 @@ def local_colour_test(img: np.ndarray, outline: np.ndarray, thr: float, k: int =
     ground under it: compared with the whole ring a dark crown matches the ground; compared with
     the ring beside it, it does not."""
     h, w = outline.shape
-    ys, _ = np.nonzero(outline)
-    band = max(3, int(round(BAND * (ys.max() - ys.min() + 1))))
-    near = cv2.dilate(outline.astype(np.uint8), cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * band + 1,) * 2)) > 0
-    ry, rx = np.nonzero(near & ~outline)
+    ry, rx = background_ring(outline)
     out = np.zeros((h, w), bool)
     if len(ry) < k:
         return out
