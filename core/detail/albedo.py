@@ -34,6 +34,8 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
+from .tubes import tube_pixels
+
 #: the leaf-colour modes besides a ``#RRGGBB`` colour
 MODES = ("albedo", "video")
 HEX = r"#[0-9A-Fa-f]{6}"
@@ -216,16 +218,11 @@ def trunk_pixels(shape: tuple[int, int], parents: np.ndarray, nodes_px: np.ndarr
     below the crown (below the lowest row where the foreground is wider than 8 trunk radii),
     when at least 40 pixels are there: a limb inside a dense crown is seen through leaves, and
     sampled the foliage's colour as the bark's (front-lit dense crown: green bark)."""
-    out = np.zeros(shape, np.uint8)
+    tube = tube_pixels(shape, parents, nodes_px, radius_px, TRUNK_SHARE, 1.2)
     r = np.asarray(radius_px, np.float64)
-    if len(r) == 0 or not np.isfinite(r).any():
-        return out.astype(bool)
+    if not tube.any():
+        return tube
     rmax = float(np.nanmax(r))
-    for c in np.flatnonzero((np.asarray(parents) >= 0) & (np.nan_to_num(r) >= TRUNK_SHARE * rmax)):
-        a, b = nodes_px[parents[c]], nodes_px[c]
-        w = max(1, int(round(1.2 * r[c])))
-        cv2.line(out, (int(round(a[0])), int(round(a[1]))), (int(round(b[0])), int(round(b[1]))), 1, w)
-    tube = out.astype(bool)
     if foreground is not None:
         wide = np.flatnonzero(np.asarray(foreground, bool).sum(1) > 8 * rmax)
         if len(wide):

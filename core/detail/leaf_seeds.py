@@ -29,6 +29,7 @@ from .leaf_clusters import (
     make_clusters,
 )
 from .leaf_cover import card_footprint, uncovered_sites
+from .tubes import tube_pixels
 
 
 @dataclass
@@ -318,18 +319,10 @@ def bark_pixels(shape: tuple[int, int], tree, base_px: np.ndarray, scale: float,
     """``(H, W)`` bool: frame 1's pixels within ``margin`` × the radius of a thick branch's axis
     (radius ≥ ``BARK_RADIUS_SHARE`` of the trunk's), the image-space twin of :func:`on_bark`;
     ``scale`` metres per px."""
-    from ..topology import edges_of
     from ..tree3d import plane_to_image
-    out = np.zeros(shape, np.uint8)
-    r = np.asarray(tree.radius, np.float64)
-    e = edges_of(tree.parents)
-    e = e[r[e[:, 1]] >= BARK_RADIUS_SHARE * r.max()] if len(e) else e
-    if len(e) == 0:
-        return out.astype(bool)
     px = plane_to_image(tree.nodes3d[0].astype(np.float64) / scale, base_px)
-    for (a, b), w in zip(np.round(px[e] * 16).astype(np.int64), 2 * margin * r[e[:, 1]] / scale):
-        cv2.line(out, (int(a[0]), int(a[1])), (int(b[0]), int(b[1])), 1, max(1, int(round(w))), cv2.LINE_8, 4)
-    return out.astype(bool)
+    return tube_pixels(shape, tree.parents, px, np.asarray(tree.radius, np.float64) / scale,
+                       BARK_RADIUS_SHARE, 2 * margin)
 
 
 def on_bark(points: np.ndarray, parents: np.ndarray, nodes: np.ndarray, radius: np.ndarray,
