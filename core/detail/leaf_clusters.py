@@ -86,6 +86,14 @@ def flutter_angles(tree, node: np.ndarray, beta: np.ndarray, hz: float, gain: fl
     return flutter(t[:, None], rel, 2 * np.pi * hz, beta[None], gain).astype(np.float32)
 
 
+def cluster_axes(pos: np.ndarray) -> np.ndarray:
+    """Clusters' main axes ``(S, 3)``: unit vectors from the clusters' mean centre out to each of
+    ``pos (S, 3)`` (up for a cluster at the centre)."""
+    axis = pos - pos.mean(0)
+    norm = np.linalg.norm(axis, axis=1, keepdims=True)
+    return np.where(norm > 1e-9, axis / np.maximum(norm, 1e-12), [0.0, 0.0, 1.0])
+
+
 def make_clusters(tree, node: np.ndarray, pos: np.ndarray, colour: np.ndarray, dark: np.ndarray, radius: float,
               cards: int, seed: int, scale, p: LeafParams):
     """:class:`LeafClusters` at ``pos (S, 3)`` on ``node (S,)``, with what every placement shares:
@@ -94,9 +102,7 @@ def make_clusters(tree, node: np.ndarray, pos: np.ndarray, colour: np.ndarray, d
     keyframes' Nyquist frequency."""
     from ..tree3d import LeafClusters
     rest = tree.nodes3d[0].astype(np.float64)
-    axis = pos - pos.mean(0)
-    norm = np.linalg.norm(axis, axis=1, keepdims=True)
-    axis = np.where(norm > 1e-9, axis / np.maximum(norm, 1e-12), [0.0, 0.0, 1.0])
+    axis = cluster_axes(pos)
     dist = np.linalg.norm(pos - rest[node], axis=1)
     beta = (2 * np.pi * dist / (4 * radius)) % (2 * np.pi)
     nyquist = 0.45 * float(tree.fps)                       # stay below Nyquist of the keyframes

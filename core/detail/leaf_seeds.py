@@ -26,6 +26,7 @@ from .leaf_clusters import (
     TREE_PX_CLOSE,
     LeafParams,
     check_leaf_params,
+    cluster_axes,
     make_clusters,
 )
 from .leaf_cover import card_footprint, uncovered_sites
@@ -69,11 +70,18 @@ def leaf_seeds(points: np.ndarray, gray: np.ndarray, nodes2d: np.ndarray, nodes3
     _, node = cKDTree(nodes2d).query(points)
     p3 = image_to_plane(points.astype(np.float64), base_px)
     limit = envelope.depth_limit(p3)                       # |y| allowed at the seed's x, z
-    y0 = np.clip(nodes3d[node, 1], -limit, limit)          # the node's depth, kept inside Ω
-    edge = np.where(dark, limit, -limit)                   # y grows away from the camera: back
-    t = np.random.default_rng(seed).uniform(0.3, 0.9, len(points))
-    p3[:, 1] = y0 + t * (edge - y0)
+    p3[:, 1] = depth_toward_edge(nodes3d[node, 1], limit, dark, np.random.default_rng(seed))
     return LeafSeeds(points.astype(np.float32), intensity, dark, node.astype(np.int32), p3.astype(np.float32))
+
+
+def depth_toward_edge(node_y: np.ndarray, limit: np.ndarray, dark: np.ndarray,
+                      rng: np.random.Generator) -> np.ndarray:
+    """Depths ``(S,)`` of seeds: from their node's depth ``node_y (S,)`` clipped into ``±limit (S,)``
+    (the envelope's half-depth at the seed), a share t ~ U(0.3, 0.9) of the way to the back
+    (``+limit``, y grows away from the camera) for ``dark (S,)`` seeds and to the front otherwise:
+    y = y0 + t (edge − y0)."""
+    y0 = np.clip(node_y, -limit, limit)
+    return y0 + rng.uniform(0.3, 0.9, len(y0)) * (np.where(dark, limit, -limit) - y0)
 
 
 BAND_ROWS = 256      # rows of the frame blurred at a time in sample_colour
@@ -167,18 +175,20 @@ def place_leaves(tree, points: np.ndarray, frame_bgr: np.ndarray, base_px: np.nd
     n_keep = int(min(p.max_clusters, max(1, round(p.density * len(points)))))
     keep = np.sort(rng.choice(len(points), n_keep, replace=False))
     pts, dark = points[keep], dark[keep]
-    pos = image_to_plane(pts, np.asarray(base_px, float)) * scale
-    _, k = cKDTree(rest[candidates][:, [0, 2]]).query(pos[:, [0, 2]])
-    node = candidates[k]
-
     env = envelope_from_meta(tree.meta)
-    if env is not None:
-        limit = env.depth_limit(pos)
-    else:                                                  # no envelope: the skeleton's own depth spread
-        limit = np.full(len(pos), float(np.abs(rest[:, 1]).max()) + 1e-6)
-    y0 = np.clip(rest[node, 1], -limit, limit)
-    edge = np.where(dark, limit, -limit)                   # y away from the camera: dark to the back
-    pos[:, 1] = y0 + rng.uniform(0.3, 0.9, len(pos)) * (edge - y0)
+    spread = float(np.abs(rest[:, 1]).max()) + 1e-6        # no envelope: the skeleton's own depth spread
+    nodes_kd = cKDTree(rest[candidates][:, [0, 2]])
+
+    def place(px: np.ndarray, dark_px: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Centres ``(S, 3)`` m of clusters at frame-1 ``px (S, 2)`` and their nearest nodes, in
+        depth toward the back of the crown (dark) or its front."""
+        at = image_to_plane(px.astype(np.float64), np.asarray(base_px, float)) * scale
+        near = candidates[nodes_kd.query(at[:, [0, 2]])[1]]
+        limit = env.depth_limit(at) if env is not None else np.full(len(at), spread)
+        at[:, 1] = depth_toward_edge(rest[near, 1], limit, dark_px, rng)
+        return at, near
+
+    pos, node = place(pts, dark)
 
     if len(pos) > 1:
         spacing = median_spacing(pos[:, [0, 2]])
@@ -203,9 +213,7 @@ def place_leaves(tree, points: np.ndarray, frame_bgr: np.ndarray, base_px: np.nd
             region = foliage_region(points, np.asarray(mask, bool), median_spacing(points))
             own = region
         dist = cv2.distanceTransform(region.astype(np.uint8), cv2.DIST_L2, 5)
-        x = np.clip(np.round(pts[:, 0]).astype(int), 0, mask.shape[1] - 1)
-        y = np.clip(np.round(pts[:, 1]).astype(int), 0, mask.shape[0] - 1)
-        size = np.clip(dist[y, x] * scale / radius, 0.25, 1.0).astype(np.float32)
+        size = _size_at(dist, pts, scale, radius)
         if p.fill:                                         # clusters where the foliage is still bare
             # the foliage's own pixels (not the gaps the closing bridged), bark left out
             target = own & ~bark_pixels(region.shape, tree, np.asarray(base_px, float), scale)
@@ -213,28 +221,29 @@ def place_leaves(tree, points: np.ndarray, frame_bgr: np.ndarray, base_px: np.nd
             for _ in range(TOP_UP_ROUNDS):
                 if len(pts) >= p.max_clusters:
                     break
-                axis = pos - pos.mean(0)
-                axis /= np.maximum(np.linalg.norm(axis, axis=1, keepdims=True), 1e-12)
-                cover = card_footprint(region.shape, pos, axis, size, radius, 0.55 * radius, p.cards, p.seed,
-                                       np.asarray(base_px, float), scale)
+                cover = card_footprint(region.shape, pos, cluster_axes(pos), size, radius, 0.55 * radius, p.cards,
+                                       p.seed, np.asarray(base_px, float), scale)
                 new = uncovered_sites(target, cover, radius / scale)[:p.max_clusters - len(pts)]
                 if len(new) == 0:
                     break
-                npos = image_to_plane(new.astype(np.float64), np.asarray(base_px, float)) * scale
-                nnode = candidates[cKDTree(rest[candidates][:, [0, 2]]).query(npos[:, [0, 2]])[1]]
                 ndark = seed_intensity(gray, new) < np.median(intensity)
-                lim = env.depth_limit(npos) if env is not None else np.full(len(npos), limit.max())
-                ny0 = np.clip(rest[nnode, 1], -lim, lim)
-                npos[:, 1] = ny0 + rng.uniform(0.3, 0.9, len(npos)) * (np.where(ndark, lim, -lim) - ny0)
-                nx = np.clip(np.round(new[:, 0]).astype(int), 0, mask.shape[1] - 1)
-                ny = np.clip(np.round(new[:, 1]).astype(int), 0, mask.shape[0] - 1)
+                npos, nnode = place(new, ndark)
                 pts, pos = np.concatenate([pts, new]), np.concatenate([pos, npos])
                 node, dark = np.concatenate([node, nnode]), np.concatenate([dark, ndark])
-                size = np.concatenate([size, np.clip(d_own[ny, nx] * scale / radius, 0.25, 1.0).astype(np.float32)])
+                size = np.concatenate([size, _size_at(d_own, new, scale, radius)])
     colour = leaf_colours(sample_colour(frame_bgr, pts, tree_px=tree_px), p.colour, scene_light(frame_bgr, mask),
                           reference=foliage_colour(frame_bgr, pts, tree_px, mask, radius / scale))
     tree.meta["leaf_colour"] = colour.meta(p.colour)
     return make_clusters(tree, node, pos, colour.colours, dark, radius, p.cards, p.seed, size, p)
+
+
+def _size_at(dist_px: np.ndarray, points: np.ndarray, scale: float, radius: float) -> np.ndarray:
+    """Clusters' sizes ``(S,)`` relative to the ``radius`` (m) at ``points (S, 2)`` px: the distance
+    map ``dist_px (H, W)`` (to where the foliage ends) there, in metres (``scale`` m per px), over
+    the radius, within 0.25..1."""
+    x = np.clip(np.round(points[:, 0]).astype(int), 0, dist_px.shape[1] - 1)
+    y = np.clip(np.round(points[:, 1]).astype(int), 0, dist_px.shape[0] - 1)
+    return np.clip(dist_px[y, x] * scale / radius, 0.25, 1.0).astype(np.float32)
 
 
 def foliage_colour(frame_bgr: np.ndarray, points: np.ndarray, tree_px: np.ndarray | None,
