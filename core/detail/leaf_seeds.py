@@ -366,25 +366,18 @@ def fill_seeds(points: np.ndarray, frame_bgr: np.ndarray, mask: np.ndarray, step
     if len(points) == 0 or not mask.any() or mask.all():
         return np.zeros((0, 2), np.float32)
     step = max(2.0, float(step))
-    if tree_px is not None:
-        ys, xs = np.mgrid[step / 2:h:step, step / 2:w:step]
-        cand = np.stack([xs.ravel(), ys.ravel()], 1)
-        ci = cand.astype(int)
-        cand = cand[mask[ci[:, 1], ci[:, 0]] & tree_px[ci[:, 1], ci[:, 0]]]
-        if len(cand) == 0:
-            return np.zeros((0, 2), np.float32)
-        return cand[cKDTree(points).query(cand)[0] > 1.5 * step].astype(np.float32)
-    lab = cv2.cvtColor(cv2.GaussianBlur(frame_bgr, (0, 0), 1.5), cv2.COLOR_BGR2LAB)   # uint8; float where sampled
     ys, xs = np.mgrid[step / 2:h:step, step / 2:w:step]
     cand = np.stack([xs.ravel(), ys.ravel()], 1)
     ci = cand.astype(int)
-    cand = cand[mask[ci[:, 1], ci[:, 0]]]
+    on = mask[ci[:, 1], ci[:, 0]]
+    cand = cand[on & tree_px[ci[:, 1], ci[:, 0]] if tree_px is not None else on]
     if len(cand) == 0:
         return np.zeros((0, 2), np.float32)
     d_seed, _ = cKDTree(points).query(cand)
     cand = cand[d_seed > 1.5 * step]
-    if len(cand) == 0:
-        return np.zeros((0, 2), np.float32)
+    if tree_px is not None or len(cand) == 0:   # the foreground says where the foliage is
+        return cand.astype(np.float32)
+    lab = cv2.cvtColor(cv2.GaussianBlur(frame_bgr, (0, 0), 1.5), cv2.COLOR_BGR2LAB)   # uint8; float where sampled
     rng = np.random.default_rng(seed)
     k = int(max(h, w) * 0.05)        # one square dilation: the same as k 3×3 ones, at the cost of one
     near = cv2.dilate(mask.astype(np.uint8), np.ones((2 * k + 1, 2 * k + 1), np.uint8)) > 0
