@@ -11,7 +11,7 @@ from dataclasses import dataclass, field, replace
 import cv2
 import numpy as np
 
-from .detail.albedo import bark_colour, scene_light, trunk_pixels
+from .detail.albedo import SceneLight, bark_colour, scene_light, trunk_pixels
 from .detail.branch_mesh import MeshParams, check_params
 from .detail.leaf_clusters import LeafParams, check_leaf_params
 from .detail.leaf_seeds import place_leaves
@@ -150,13 +150,15 @@ def build_3d(res: Result, s: Settings | None = None, name: str = "Tree",
     fg = res.foreground
     if fg is None and frame is not None and tmap is not None:
         fg = foreground(frame, res.outline.mask, tmap)
+    light = None
     if frame is not None:                           # the bark's albedo from the trunk's pixels
+        light = scene_light(frame, res.outline.mask)
         trunk = trunk_pixels((frame.shape[0], frame.shape[1]), sk.parents, sk.nodes2d[0],
                              radius_px if radius_px is not None else radius / scale,
                              fg.mask if fg is not None else None)
-        meta["bark_colour"] = bark_colour(frame, trunk, tree_px, scene_light(frame, res.outline.mask)).meta("albedo")
+        meta["bark_colour"] = bark_colour(frame, trunk, tree_px, light).meta("albedo")
     tree = add_twigs(tree, s.twigs, parts["details"], tree_px)  # after the motion solve, before the leaves
-    return add_leaves(res, tree, s, frame, tree_px, fg.mask if fg is not None else None)
+    return add_leaves(res, tree, s, frame, tree_px, fg.mask if fg is not None else None, light)
 
 
 def first_frame(res: Result) -> np.ndarray | None:
@@ -165,10 +167,12 @@ def first_frame(res: Result) -> np.ndarray | None:
 
 
 def add_leaves(res: Result, tree: Tree3D, s: Settings, frame: np.ndarray | None = None,
-               tree_px: np.ndarray | None = None, fg: np.ndarray | None = None) -> Tree3D:
+               tree_px: np.ndarray | None = None, fg: np.ndarray | None = None,
+               light: SceneLight | None = None) -> Tree3D:
     """Leaf clusters from the frame-1 Harris points (``tree.leaves``, placed from the tree's
     ``meta["base_px"]`` as :func:`build_3d` records it); the tree unchanged when ``s.leaves`` is
-    None or frame 1 cannot be read again. ``frame`` frame 1 if already read."""
+    None or frame 1 cannot be read again. ``frame`` frame 1 if already read, ``light`` its
+    :func:`.detail.albedo.scene_light` if already measured."""
     if s.leaves is None:
         return tree
     if frame is None:
@@ -181,5 +185,5 @@ def add_leaves(res: Result, tree: Tree3D, s: Settings, frame: np.ndarray | None 
     points = detect_corners(cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY), mask, s.track)
     # the tree's own base (the branch fit may have moved the trunk onto its centre line)
     tree.leaves = place_leaves(tree, points, frame, np.asarray(tree.meta["base_px"], float), s.leaves,
-                               mask, tree_px, fg)
+                               mask, tree_px, fg, light)
     return tree

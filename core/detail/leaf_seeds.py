@@ -20,7 +20,7 @@ from scipy.spatial import cKDTree
 
 from ..envelope import Envelope
 from ..tree3d import image_to_plane
-from .albedo import leaf_colours, scene_light
+from .albedo import SceneLight, leaf_colours, scene_light
 from .leaf_clusters import (
     BARK_RADIUS_SHARE,
     TREE_PX_CLOSE,
@@ -128,7 +128,8 @@ def _window(y: np.ndarray, x: np.ndarray, margin: int, shape: tuple) -> tuple[tu
 
 def place_leaves(tree, points: np.ndarray, frame_bgr: np.ndarray, base_px: np.ndarray,
                  params: LeafParams | None = None, mask: np.ndarray | None = None,
-                 tree_px: np.ndarray | None = None, foreground: np.ndarray | None = None):
+                 tree_px: np.ndarray | None = None, foreground: np.ndarray | None = None,
+                 light: SceneLight | None = None):
     """Leaf clusters for ``tree`` (a :class:`Tree3D` in metres with ``meta["metres_per_px"]`` and,
     if known, ``meta["envelope"]``) from frame-1 Harris ``points (S, 2)`` px on ``frame_bgr``;
     ``base_px`` the trunk base in frame 1 (px). Each kept seed becomes a cluster on the bone of
@@ -141,8 +142,9 @@ def place_leaves(tree, points: np.ndarray, frame_bgr: np.ndarray, base_px: np.nd
     of the tree's pixels, gaps narrower than ``TREE_PX_CLOSE`` × the cluster radius closed, so a
     tuft on a bare twig stays as small as the video shows it, and each cluster moves to the centre
     of the tree pixels within its radius (:func:`centre_on_pixels`).
-    The clusters' colours follow ``params.colour`` (:func:`.albedo.leaf_colours`, the scene's light
-    from ``frame_bgr`` and ``mask``); ``tree.meta["leaf_colour"]`` records the choice.
+    The clusters' colours follow ``params.colour`` (:func:`.albedo.leaf_colours`, the scene's
+    ``light``, measured on ``frame_bgr`` and ``mask`` when not given); ``tree.meta["leaf_colour"]``
+    records the choice.
     Returns a :class:`LeafClusters` or None when there are no seeds."""
     from ..envelope import envelope_from_meta
     p = params or LeafParams()
@@ -231,7 +233,7 @@ def place_leaves(tree, points: np.ndarray, frame_bgr: np.ndarray, base_px: np.nd
                 pts, pos = np.concatenate([pts, new]), np.concatenate([pos, npos])
                 node, dark = np.concatenate([node, nnode]), np.concatenate([dark, ndark])
                 size = np.concatenate([size, _size_at(d_own, new, scale, radius)])
-    colour = leaf_colours(sample_colour(frame_bgr, pts, tree_px=tree_px), p.colour, scene_light(frame_bgr, mask),
+    colour = leaf_colours(sample_colour(frame_bgr, pts, tree_px=tree_px), p.colour, light or scene_light(frame_bgr, mask),
                           reference=foliage_colour(frame_bgr, pts, tree_px, mask, radius / scale))
     tree.meta["leaf_colour"] = colour.meta(p.colour)
     return make_clusters(tree, node, pos, colour.colours, dark, radius, p.cards, p.seed, size, p)

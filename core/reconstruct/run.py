@@ -10,6 +10,7 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass, field
 
+import cv2
 import numpy as np
 
 from ..errors import InputError
@@ -177,7 +178,6 @@ def run(video: str, outline_path, settings: ReconstructSettings | None = None,
 def frame_one(info: VideoInfo, start: int, shape: tuple[int, ...]) -> np.ndarray | None:
     """Frame ``start`` (BGR uint8) at ``shape`` (H, W) — the outline's, the processing scale's —
     or None when it cannot be read again."""
-    import cv2
     frame = next(iter_frames(info, start, start + 1), None)
     if frame is None:
         return None
