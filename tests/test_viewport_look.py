@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from tree_from_video.core import bones
+from tree_from_video.core.detail.albedo import srgb_to_linear
 from tree_from_video.core.detail.leaf_clusters import grow_leaves
 from tree_from_video.operators.scene import build
 
@@ -26,11 +27,6 @@ def leafy():
     tree.leaves = grow_leaves(tree, {"colour": GREEN, "radius_frac": 0.04, "cards": 6, "per_node": 0.5}, seed=3)
     assert tree.leaves is not None and tree.leaves.count > 20
     return tree
-
-
-def _linear(c):
-    c = np.asarray(c, np.float64)
-    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
 
 
 def test_new_tree_draws_no_bones_lands_unselected_and_has_solid_view_colours(leafy):
@@ -56,7 +52,7 @@ def test_new_tree_draws_no_bones_lands_unselected_and_has_solid_view_colours(lea
 
     # Solid view: the leaf material shows the leaves' median colour (linear), the bark its ramp's middle
     leaf = built["leaves"].data.materials[0]
-    want = _linear(np.median(leafy.leaves.colour, axis=0))
+    want = srgb_to_linear(np.median(leafy.leaves.colour, axis=0))
     got = np.array(leaf.diffuse_color[:3])
     assert got == pytest.approx(want, abs=0.01)
     assert got[1] > 1.5 * max(got[0], got[2])                      # green, not grey
@@ -101,5 +97,5 @@ def test_the_bark_takes_the_colour_the_video_gave_it(leafy):
     tree.meta = dict(leafy.meta, bark_colour={"mode": "albedo", "colour": [0.5, 0.5, 0.5], "source": "albedo",
                                               "why": "test"})
     bark = build.build_tree(bpy.context, tree, "Grey")["material"]
-    want = _linear(np.array([0.5, 0.5, 0.5]))
+    want = srgb_to_linear(np.array([0.5, 0.5, 0.5]))
     assert np.array(bark.diffuse_color[:3]) == pytest.approx(want, abs=0.005)
