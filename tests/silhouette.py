@@ -5,6 +5,10 @@ import bpy
 import cv2
 import numpy as np
 
+from tree_from_video.sample_videos import synth_tree
+
+from groundtruth import true_labels
+
 
 def render_silhouette(tree, path: str) -> np.ndarray:
     """``(H, W)`` bool: where the built tree covers frame 1 seen like the video (orthographic,
@@ -34,3 +38,9 @@ def render_silhouette(tree, path: str) -> np.ndarray:
     bpy.ops.render.render(write_still=True)
     img = cv2.imread(path, cv2.IMREAD_UNCHANGED)
     return img[..., 3] > 127
+
+
+def true_mask(variant: str, seed: int | None = None, frames: int | None = None) -> np.ndarray:
+    """``(H, W)`` bool: the true tree (branches and leaves) in frame 1 of a sample variant."""
+    lab = true_labels(variant, seed, frames)
+    return (lab == synth_tree.LABEL_BRANCH) | (lab == synth_tree.LABEL_LEAF)

@@ -84,7 +84,9 @@ def _video_colours(variant: str, folder: str) -> tuple[np.ndarray, np.ndarray]:
     """sRGB medians of frame 1's true leaf pixels and of its trunk below the crown (branch
     pixels under the lowest leaf)."""
     from tree_from_video.sample_videos import synth_tree as st
-    lab = st.render_labels(st.build_scene(st.config_for(variant, seed=SEED)), 0)
+
+    from groundtruth import true_labels
+    lab = true_labels(variant, SEED)
     cap = cv2.VideoCapture(os.path.join(folder, "video.mp4"))
     ok, f0 = cap.read()
     cap.release()

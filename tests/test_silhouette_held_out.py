@@ -6,7 +6,7 @@ tests/test_silhouette.py)."""
 import bpy
 import pytest
 import report
-from silhouette import render_silhouette
+from silhouette import render_silhouette, true_mask
 
 from tree_from_video.core import pipeline
 from tree_from_video.operators.scene import build
@@ -46,8 +46,7 @@ def test_held_out_silhouettes_cover_the_video_tree(held_out, variant, tmp_path):
     tree = pipeline.build_3d(res, pipeline.Settings(), name="Sil")
     build.build_tree(bpy.context, tree, "Sil")
     sil = render_silhouette(tree, str(tmp_path / "sil.png"))
-    lab = synth_tree.render_labels(synth_tree.build_scene(synth_tree.config_for(variant, seed=HELD_OUT, frames=48)), 0)
-    truth = (lab == synth_tree.LABEL_BRANCH) | (lab == synth_tree.LABEL_LEAF)
+    truth = true_mask(variant, HELD_OUT, 48)
     iou = (sil & truth).sum() / max((sil | truth).sum(), 1)
     report.add("frame-1 silhouette, held-out seed 2 (tests/test_silhouette.py)",
                [f"{variant}: IoU {iou:.3f}, covered {(sil & truth).sum() / truth.sum():.3f}, "
