@@ -7,7 +7,7 @@ import pytest
 
 from tree_from_video.core import bones
 from tree_from_video.core.detail.albedo import srgb_to_linear
-from tree_from_video.core.detail.leaf_clusters import grow_leaves
+from tree_from_video.core.detail.grown_leaves import grow_leaves
 from tree_from_video.operators.scene import build
 
 from trees import (

@@ -1,7 +1,7 @@
 """Leaf clusters (paper Appendix B.1, §5): the parameters, the geometry every placement shares
 (outward axis, phase β, flutter y(t) = A(t) sin(ωt + β), every leaf's own flap), the cluster
-template of leaf cards and its mesh, and the clusters of generated trees (:func:`grow_leaves`).
-Where the clusters of a reconstructed tree go is read from the video in :mod:`.leaf_seeds`.
+template of leaf cards and its mesh. Where the clusters of a reconstructed tree go is read from the
+video in :mod:`.leaf_seeds`; a generated tree's grow in :mod:`.grown_leaves`.
 """
 from __future__ import annotations
 
@@ -181,30 +181,6 @@ def leaf_centres(tree) -> np.ndarray:
     head = tree.parents[lv.node]
     offset = lv.pos.astype(np.float64) - tree.nodes3d[0, head].astype(np.float64)
     return tree.nodes3d[:, head].astype(np.float64) + quat_rotate(q[:, b], offset[None])
-
-
-def grow_leaves(tree, info: dict, density: float = 1.0, seed: int = 0, params: LeafParams | None = None):
-    """Leaf clusters for a generated tree (no video): around its thin-branch nodes (radius below
-    ``BARK_RADIUS_SHARE`` of the trunk's), ``info["per_node"] × density`` clusters per node, each
-    ``info["radius_frac"] / √density`` of the height (the species' own foliage, paper §5: fewer,
-    larger clusters), in the species' leaf colour ±8 %, axis away from the crown centre, flutter
-    as for a reconstruction. ``info`` is :func:`..generate.species.leaf_info` of the source. Returns
-    :class:`LeafClusters` or None."""
-    p = params or LeafParams()
-    rng = np.random.default_rng([int(seed) & 0xFFFFFFFF, 0x1EAF])
-    rest = tree.nodes3d[0].astype(np.float64)
-    r = np.asarray(tree.radius, np.float64)
-    thin = np.flatnonzero((r < BARK_RADIUS_SHARE * r.max()) & (np.arange(tree.n_nodes) > 0))
-    if len(thin) == 0 or density <= 0:
-        return None
-    H = max(float(np.ptp(rest[:, 2])), 1e-6)
-    n = int(min(p.max_clusters, max(1, round(info["per_node"] * density * len(thin)))))
-    node = rng.choice(thin, n, replace=n > len(thin))
-    radius = float(info["radius_frac"]) * H / np.sqrt(min(max(density, 1e-3), 1.0))
-    pos = rest[node] + rng.normal(scale=0.35 * radius, size=(n, 3))
-    colour = np.clip(np.asarray(info["colour"], np.float64)[None] * rng.uniform(0.92, 1.08, (n, 1)), 0, 1)
-    dark = (pos[:, 1] - pos.mean(0)[1]) > 0                 # behind the crown centre
-    return make_clusters(tree, node, pos, colour, dark, radius, info["cards"], seed, None, p)
 
 
 def leaf_flap_offsets(co: np.ndarray, angle: float, seed: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

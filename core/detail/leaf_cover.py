@@ -47,11 +47,11 @@ def card_footprint(shape: tuple[int, int], pos: np.ndarray, axis: np.ndarray, si
 
 
 def uncovered_sites(target: np.ndarray, covered: np.ndarray, spacing_px: float,
-                    min_px: float = 1.5) -> np.ndarray:
+                    min_px: float = 1.5, deepest_first: bool = False) -> np.ndarray:
     """Centres ``(E, 2)`` px for new clusters: in ``target (H, W)`` (the foliage) but not
     ``covered (H, W)``, one per ``spacing_px`` square cell, at the cell's uncovered pixel deepest
     inside the uncovered part (its distance transform, at least ``min_px``: slivers between
-    cards are not holes)."""
+    cards are not holes); row by row, or the deepest first with ``deepest_first``."""
     hole = (np.asarray(target, bool) & ~np.asarray(covered, bool)).astype(np.uint8)
     if not hole.any():
         return np.zeros((0, 2), np.float32)
@@ -64,4 +64,6 @@ def uncovered_sites(target: np.ndarray, covered: np.ndarray, spacing_px: float,
     cell = max(1.0, float(spacing_px))                    # one centre per cell: its deepest pixel
     cy, cx = (ys / cell).astype(np.int64), (xs / cell).astype(np.int64)
     _, first = np.unique(cy * (int(cx.max()) + 1) + cx, return_index=True)
+    if deepest_first:
+        first = np.sort(first)
     return np.stack([xs[first], ys[first]], 1).astype(np.float32)

@@ -71,7 +71,9 @@ class GrowParams:
     ``tropism`` weigh growth directions by the example's branch orientations;
     ``segments`` bones per branch (None: from the model's bone length); ``bend`` lateral bump of a
     branch (share of its length); ``lift_candidates`` / ``lift_attractors`` of the push;
-    ``tip_radius`` share of the height; ``pipe_exponent``; ``leaf_density`` passed on in
+    ``tip_radius`` share of the height and ``pipe_exponent`` of the pipe-model radii (None: fitted
+    so the trunk and the tips are as wide as the source's, :func:`species_radii`; 0.0025 and 2
+    for a species without widths); ``leaf_density`` passed on in
     ``meta`` for the leaf builder; ``conifer`` (None: the model's); ``name``."""
 
     seed: int = 0
@@ -93,8 +95,8 @@ class GrowParams:
     bend: float = 0.04
     lift_candidates: int = 16
     lift_attractors: int = 128
-    tip_radius: float = 0.0025
-    pipe_exponent: float = 2.0
+    tip_radius: float | None = None
+    pipe_exponent: float | None = None
     leaf_density: float = 1.0
     conifer: bool | None = None
     name: str | None = None
@@ -368,6 +370,8 @@ def lift_grown(g: Grown2D, region: Region2D, conifer: bool, p: GrowParams,
 #: the swaying crown stays in its envelope: at most this share of the node-frames that start inside
 #: may leave it by more than ``SWAY_SLACK`` × the tree's height
 SWAY_OUTSIDE = 0.005
+#: ... and in no frame more than this share of them
+SWAY_OUTSIDE_FRAME = 0.02
 SWAY_SLACK = 0.02
 
 
@@ -390,40 +394,69 @@ def match_excursion(parents: np.ndarray, rest: np.ndarray, rot: np.ndarray, targ
     return factor
 
 
-def contain_sway(parents: np.ndarray, rest: np.ndarray, rot: np.ndarray, region: Region2D) -> tuple[np.ndarray, float]:
+def contain_sway(parents: np.ndarray, rest: np.ndarray, rot: np.ndarray, region: Region2D,
+                 env: Envelope | None = None) -> tuple[np.ndarray, float]:
     """Forward kinematics of the sway ``rot (F, N, 3)`` about ``rest (N, 3)`` metres, with the
     rotations scaled down by one factor for the tree (bisection, 6 steps) where the sway would carry
-    more than :data:`SWAY_OUTSIDE` of the nodes more than :data:`SWAY_SLACK` of the height outside
-    the envelope ``region`` (x, z) — the species' own sway fits the artist's silhouette (the wind
+    more than :data:`SWAY_OUTSIDE` of the node-frames (or :data:`SWAY_OUTSIDE_FRAME` of the nodes in
+    one frame) more than :data:`SWAY_SLACK` of the height outside
+    the envelope ``region`` (x, z), or with ``env`` (metres) outside Ω itself in 3D (swaying in
+    depth too) — the species' own sway fits the artist's silhouette (the wind
     strength scales it on top). Returns ``(nodes3d (F, N, 3), factor)``; the factor is 1 for a sway
     that stays inside."""
     import cv2
     H = float(max(rest[:, 2].max(), 1e-6))
     grow_px = int(np.ceil(SWAY_SLACK * H / region.cell))
-    near = cv2.dilate(region.full.astype(np.uint8), np.ones((2 * grow_px + 1,) * 2, np.uint8)).astype(bool)
+    disk = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * grow_px + 1,) * 2)   # slack in every direction
+    near = cv2.dilate(region.full.astype(np.uint8), disk).astype(bool)
 
     def inside(p: np.ndarray) -> np.ndarray:
-        return region.sample(near, p[..., [0, 2]])
+        ok = region.sample(near, p[..., [0, 2]])
+        return ok if env is None else ok & env.contains(p, tol=SWAY_SLACK * H)
 
     start = inside(rest)
 
-    def outside_share(nodes: np.ndarray) -> float:
-        return float((~inside(nodes[:, start])).mean()) if start.any() else 0.0
+    def contained(nodes: np.ndarray) -> bool:
+        if not start.any():
+            return True
+        per_frame = (~inside(nodes[:, start])).mean(axis=1)
+        return bool(per_frame.mean() <= SWAY_OUTSIDE and per_frame.max() <= SWAY_OUTSIDE_FRAME)
 
     nodes3d = forward_kinematics(parents, rest, rot)
-    if outside_share(nodes3d) <= SWAY_OUTSIDE:
+    if contained(nodes3d):
         return nodes3d, 1.0
     lo, hi, best = 0.0, 1.0, None
     for _ in range(6):
         mid = 0.5 * (lo + hi)
         cand = forward_kinematics(parents, rest, rot * mid)
-        if outside_share(cand) <= SWAY_OUTSIDE:
+        if contained(cand):
             lo, best = mid, cand
         else:
             hi = mid
     if best is None:
         return forward_kinematics(parents, rest, rot * 0.0), 0.0
     return best, lo
+
+
+def species_radii(parents: np.ndarray, height: float, widths: tuple | None, tip: float | None = None,
+                  exponent: float | None = None) -> np.ndarray:
+    """Pipe-model radii ``(N,)`` metres (``r_parent^e = Σ r_child^e``) of a tree ``height`` m
+    tall. With the source's ``widths = (trunk, tip)`` (shares of the height): tips ``tip·H`` and
+    the exponent that makes the trunk base ``trunk·H`` (n tips of one radius give a trunk of
+    ``tip · n^(1/e)``, so ``e = ln n / ln(trunk / tip)``, kept in [1.5, 4]), then scaled so the
+    trunk base is exactly ``trunk·H``. ``tip`` / ``exponent`` given override the fit."""
+    if widths is None:
+        return pipe_radii(parents, (0.0025 if tip is None else tip) * height, 2.0 if exponent is None else exponent)
+    trunk, tip_w = float(widths[0]), float(widths[1]) if tip is None else float(tip)
+    n_tips = max(int(len(parents) - len(np.unique(parents[parents >= 0]))), 1)
+    e = exponent
+    if e is None:
+        ratio = trunk / max(tip_w, 1e-12)
+        e = float(np.clip(np.log(n_tips) / np.log(ratio), 1.5, 4.0)) if ratio > 1 and n_tips > 1 else 2.0
+    r = pipe_radii(parents, tip_w * height, e)
+    if exponent is None and tip is None and r[0] > 0:
+        r = r * (trunk * height / float(r[0]))
+    return r.astype(np.float32)
 
 
 def grow_tree(model: SpeciesModel, envelope: Envelope, params: GrowParams | None = None,
@@ -463,14 +496,14 @@ def grow_tree(model: SpeciesModel, envelope: Envelope, params: GrowParams | None
     # the species' own sway (wind 1) sways as far as its source did and stays inside the envelope;
     # the wind then scales it (×2 is ×2)
     rot = rot * match_excursion(g.parents, rest, rot, model.sway_excursion)
-    unit, sway_scale = contain_sway(g.parents, rest, rot, region)
+    unit, sway_scale = contain_sway(g.parents, rest, rot, region, env)
     if np.all(gains == 1.0):
         nodes3d = unit
     else:
         nodes3d = forward_kinematics(g.parents, rest, rot * (sway_scale * gains[:, None, None]))
     report(progress, "animating", 1.0)
     H = float(max(rest[:, 2].max(), 1e-6))
-    radius = pipe_radii(g.parents, p.tip_radius * H, p.pipe_exponent)
+    radius = species_radii(g.parents, H, model.widths, p.tip_radius, p.pipe_exponent)
     k = RASTER_HEIGHT_PX / max(region.height(), float(g.pos[:, 1].max()), 1e-6)
     meta: TreeMeta = {"species": model.name, "seed": int(p.seed), "generated": True, "envelope": envelope_meta(env),
             "wind": float(p.wind), "audio": os.fspath(audio) if isinstance(audio, (str, os.PathLike)) else
@@ -481,6 +514,6 @@ def grow_tree(model: SpeciesModel, envelope: Envelope, params: GrowParams | None
     tree = Tree3D(g.parents.astype(np.int32), nodes3d.astype(np.float32), radius,
                   branching_level(g.parents).astype(np.int32), fps, p.name or f"{model.name}_{int(p.seed)}", meta)
     if p.leaf_density > 0 and model.leaves is not None:
-        from ..detail.leaf_clusters import grow_leaves
-        tree.leaves = grow_leaves(tree, model.leaves, p.leaf_density, int(p.seed))
+        from ..detail.grown_leaves import grow_leaves
+        tree.leaves = grow_leaves(tree, model.leaves, p.leaf_density, int(p.seed), envelope=env)
     return tree

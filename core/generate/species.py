@@ -15,6 +15,8 @@ from typing import Any
 
 import numpy as np
 
+from ..detail.grown_leaves import envelope_cover
+from ..envelope import envelope_from_meta
 from ..errors import InputError
 from .dirichlet import fit_dirichlet
 from .features import (
@@ -81,9 +83,12 @@ class SpeciesModel:
     ``source_height_m``; ``fps`` and ``n_frames`` of the source; ``conifer``; ``mu_deg`` mean
     branching angle of the source lift; ``fallbacks`` notes from degenerate fits; ``leaves`` the
     source's foliage (median leaf colour sRGB, cluster radius / height, cards per cluster,
-    clusters per thin-branch node) or None for a bare source; ``sway_excursion`` how far the source's
+    clusters per thin-branch node, and ``fill`` the share of its envelope's front view they cover)
+    or None for a bare source; ``sway_excursion`` how far the source's
     nodes sway (:func:`sway_excursion`, a share of the height; None in files fitted before it was
-    measured), which generated trees are scaled to at wind 1."""
+    measured), which generated trees are scaled to at wind 1; ``widths`` ``(trunk, tip)`` the
+    source's trunk-base and median tip radius as shares of its height (None in older files:
+    generated trees then take :class:`..growth.GrowParams`' defaults)."""
 
     name: str
     angles: np.ndarray
@@ -106,6 +111,7 @@ class SpeciesModel:
     fallbacks: list = field(default_factory=list)
     leaves: dict | None = None      # {"colour": sRGB (3,), "radius_frac", "cards", "per_node"} or None
     sway_excursion: float | None = None   # the source's sway (:func:`sway_excursion`); None: not measured
+    widths: tuple | None = None           # (trunk, tip) radius / height (:func:`branch_widths`); None: not measured
 
     def to_json(self) -> dict:
         """JSON-able dict (rounded, human-readable)."""
@@ -122,7 +128,10 @@ class SpeciesModel:
                       "branch_frac": round(float(self.branch_frac), 5),
                       "orientation_deg": [round(float(x), 3) for x in self.orientation_deg],
                       "mirror_p": round(float(self.mirror_p), 4),
-                      "n_bifurcations": int(self.n_bifurcations), "mu_deg": round(float(self.mu_deg), 3)},
+                      "n_bifurcations": int(self.n_bifurcations), "mu_deg": round(float(self.mu_deg), 3),
+                      **({} if self.widths is None else
+                         {"trunk_radius_frac": round(float(self.widths[0]), 6),
+                          "tip_radius_frac": round(float(self.widths[1]), 6)})},
             "motion": {AXES[a]: {"freqs_hz": arr(m.freqs_hz, 5), "energy_alpha": arr(m.energy),
                                  "real_alpha": arr(m.real), "imag_alpha": arr(m.imag),
                                  "log_rms": arr(m.log_rms), "phase_spread": round(float(m.phase_spread), 5),
@@ -135,7 +144,9 @@ class SpeciesModel:
             **({"leaves": {"colour": arr(self.leaves["colour"], 4),
                            "radius_frac": round(float(self.leaves["radius_frac"]), 5),
                            "cards": int(self.leaves["cards"]),
-                           "per_node": round(float(self.leaves["per_node"]), 4)}} if self.leaves else {}),
+                           "per_node": round(float(self.leaves["per_node"]), 4),
+                           **({"fill": round(float(self.leaves["fill"]), 4)} if "fill" in self.leaves else {})}}
+               if self.leaves else {}),
         }
 
     @classmethod
@@ -180,7 +191,8 @@ class SpeciesModel:
                         float(src["height_m"]), float(src["fps"]),
                         int(src["n_frames"]), bool(d.get("conifer", False)), float(sh.get("mu_deg", 38.0)),
                         ver, list(d.get("fallbacks", [])), _leaf_info(d.get("leaves")),
-                        None if src.get("sway_excursion") is None else float(src["sway_excursion"]))
+                        None if src.get("sway_excursion") is None else float(src["sway_excursion"]),
+                        _widths(sh))
         except (KeyError, TypeError, ValueError) as exc:
             raise InputError(f"{where} is incomplete or damaged ({exc.__class__.__name__}: {exc}); "
                              "fit the species again or pick another file") from None
@@ -190,12 +202,25 @@ class SpeciesModel:
         return model
 
 
+def _widths(sh: dict) -> tuple[float, float] | None:
+    if sh.get("trunk_radius_frac") is None:
+        return None
+    w = (float(sh["trunk_radius_frac"]), float(sh["tip_radius_frac"]))
+    if not 0 < w[1] <= w[0] < 1:
+        raise ValueError("branch widths need 0 < tip_radius_frac <= trunk_radius_frac < 1")
+    return w
+
+
 def _leaf_info(d) -> dict | None:
     if d is None:
         return None
     colour = [float(c) for c in d["colour"]]
     info: dict[str, Any] = {"colour": colour, "radius_frac": float(d["radius_frac"]), "cards": int(d["cards"]),
             "per_node": float(d["per_node"])}
+    if d.get("fill") is not None:
+        info["fill"] = float(d["fill"])
+        if not 0 < info["fill"] <= 1:
+            raise ValueError("leaves' fill must be in (0, 1]")
     if len(colour) != 3 or not all(0 <= c <= 1 for c in colour) or not 0 < info["radius_frac"] < 1 \
             or not 1 <= info["cards"] <= 256 or not info["per_node"] > 0:
         raise ValueError("leaves need colour (3 values 0..1), 0 < radius_frac < 1, cards 1..256, per_node > 0")
@@ -203,15 +228,20 @@ def _leaf_info(d) -> dict | None:
 
 
 def leaf_info(tree) -> dict | None:
-    """The foliage of a reconstructed tree as a species keeps it (see :class:`SpeciesModel`)."""
+    """The foliage of a reconstructed tree as a species keeps it (see :class:`SpeciesModel`); with
+    ``"fill"``, the share of its envelope's front view its leaves cover, when it has an envelope."""
     lv = getattr(tree, "leaves", None)
     if lv is None or lv.count == 0:
         return None
     H = float(max(np.ptp(tree.nodes3d[0][:, 2]), 1e-6))
     r = np.asarray(tree.radius, np.float64)
     thin = int(np.sum(r < 0.3 * r.max())) or 1
-    return {"colour": np.median(lv.colour, axis=0).tolist(), "radius_frac": float(lv.radius / H),
+    info = {"colour": np.median(lv.colour, axis=0).tolist(), "radius_frac": float(lv.radius / H),
             "cards": int(lv.cards), "per_node": float(lv.count / thin)}
+    env = envelope_from_meta(tree.meta)
+    if env is not None:
+        info["fill"] = envelope_cover(lv, env)
+    return info
 
 
 def _orientation(x) -> tuple[float, float]:
@@ -329,7 +359,17 @@ def fit_species(tree, name: str, keep: float = KEEP_FRACTION) -> SpeciesModel:
         mirror_p=float(np.mean(feats.mirrored)), source_height_m=height, fps=float(tree.fps),
         n_frames=int(nodes.shape[0]), conifer=bool(tree.meta.get("conifer", False)),
         mu_deg=float(tree.meta.get("mu_deg", 38.0)), fallbacks=fallbacks, leaves=leaf_info(tree),
-        sway_excursion=sway_excursion(nodes, height))
+        sway_excursion=sway_excursion(nodes, height), widths=branch_widths(parents, tree.radius, height))
+
+
+def branch_widths(parents: np.ndarray, radius: np.ndarray, height: float) -> tuple[float, float]:
+    """``(trunk, tip)``: the trunk base's radius and the median tip's radius as shares of the
+    height (what generated trees' pipe-model radii are fitted to)."""
+    r = np.asarray(radius, np.float64) / max(float(height), 1e-9)
+    has_child = np.zeros(len(r), bool)
+    has_child[np.asarray(parents)[np.asarray(parents) >= 0]] = True
+    tip = float(np.median(r[~has_child])) if (~has_child).any() else float(r[0])
+    return float(r[0]), float(min(tip, r[0]))
 
 
 # ============================================================================ files
