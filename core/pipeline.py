@@ -11,7 +11,7 @@ from dataclasses import dataclass, field, replace
 import cv2
 import numpy as np
 
-from .detail.albedo import SceneLight, bark_colour, scene_light, trunk_pixels
+from .detail.albedo import SceneLight, bark_colour, hidden_bark, scene_light, trunk_pixels
 from .detail.branch_mesh import MeshParams, check_params
 from .detail.leaf_clusters import LeafParams, check_leaf_params
 from .detail.leaf_seeds import place_leaves
@@ -156,7 +156,7 @@ def build_3d(res: Result, s: Settings | None = None, name: str = "Tree",
         trunk = trunk_pixels((frame.shape[0], frame.shape[1]), sk.parents, sk.nodes2d[0],
                              radius_px if radius_px is not None else radius / scale,
                              fg.mask if fg is not None else None)
-        meta["bark_colour"] = bark_colour(frame, trunk, tree_px, light).meta("albedo")
+        meta["bark_colour"] = (hidden_bark() if sk.hidden_trunk else bark_colour(frame, trunk, tree_px, light)).meta("albedo")
     tree = add_twigs(tree, s.twigs, parts["details"], tree_px)  # after the motion solve, before the leaves
     return add_leaves(res, tree, s, frame, tree_px, fg.mask if fg is not None else None, light)
 

@@ -91,8 +91,9 @@ OLD_VARIANTS = ("broad", "conifer", "sparse", "hard", "gentle", "grey", "dense")
 WIND_VARIANTS = ("flutter", "gusts", "flicker", "foreground", "conifer_storm", "palm", "long", "tiny", "hd",
                  "vfr")
 #: variants for the look on real footage (issue 19): a dense crown front-lit under an overcast
-#: sky, the same backlit (a dark silhouette against the bright sky), and autumn-coloured foliage
-LOOK_VARIANTS = ("frontlit", "backlit", "autumn")
+#: sky, the same backlit (a dark silhouette against the bright sky), autumn-coloured foliage, and
+#: a crown whose foliage hangs to the ground in front of its trunk (the trunk hidden)
+LOOK_VARIANTS = ("frontlit", "backlit", "autumn", "hidden")
 VARIANTS = OLD_VARIANTS + WIND_VARIANTS + LOOK_VARIANTS
 
 _SHIFT = 4                     # fractional bits for OpenCV drawing (1/16 px precision)
@@ -105,7 +106,7 @@ _UP = np.array([0.0, 0.0, 1.0])
 _S_TREE, _S_LEAVES, _S_MOTION, _S_BACKGROUND, _S_CAMERA, _S_NOISE, _S_OUTLINE, _S_BARK = range(1, 9)
 # streams of the wind and light options: drawn only when an option is on, so that a config without
 # them gives exactly the output it gave before they existed
-_S_TURN, _S_SWING, _S_LEAN, _S_LIGHT, _S_FOREGROUND, _S_TIMES, _S_PALM = range(9, 16)
+_S_TURN, _S_SWING, _S_LEAN, _S_LIGHT, _S_FOREGROUND, _S_TIMES, _S_PALM, _S_SKIRT = range(9, 17)
 
 # label values of render_labels
 LABEL_BACKGROUND, LABEL_BRANCH, LABEL_LEAF, LABEL_OCCLUDER, LABEL_FOREGROUND = 0, 1, 2, 3, 4
@@ -146,6 +147,7 @@ class SynthConfig:
     front_lit: bool = False          # flat bright lighting of the crown (dense variant)
     front_clusters: bool = False     # extra clusters in front of every limb (hides them)
     fill_clusters: int = 0           # extra clusters spread through the crown volume
+    skirt: bool = False              # foliage hanging from the crown to the ground around the trunk
     # --- motion
     sway_scale: float = 1.0          # multiplies all branch sway angles
     freq_scale: float = 1.0          # multiplies sway frequencies (result clipped to 0.3-1.5 Hz)
@@ -218,6 +220,7 @@ _PRESETS.update({
     "frontlit": dict(_DENSE, sky="overcast", frames=48),
     "backlit": dict(_DENSE, sky="overcast", light="backlit", frames=48),
     "autumn": dict(_DENSE, palette="autumn", frames=48),
+    "hidden": dict(_DENSE, skirt=True, frames=48),
 })
 
 #: seeds per variant: "dev" ones may be looked at while developing the reconstruction, "held_out"
@@ -652,7 +655,34 @@ def _cluster_sites(cfg: SynthConfig, tree: Tree, rng: np.random.Generator, s: fl
         fc, fr, fn = _fill_sites(tree, rng, cfg.fill_clusters, r0)
         centres, radii, nodes = (np.concatenate([centres, fc]), np.concatenate([radii, fr]),
                                  np.concatenate([nodes, fn]))
+    if cfg.skirt:
+        sc, sr, sn = _skirt_sites(cfg, tree, r0)
+        centres, radii, nodes = (np.concatenate([centres, sc]), np.concatenate([radii, sr]),
+                                 np.concatenate([nodes, sn]))
     return centres, radii, nodes
+
+
+def _skirt_sites(cfg: SynthConfig, tree: Tree, r0: float):
+    """Clusters hanging from the crown to the ground (``skirt``): a column in front of the trunk
+    from the first fork down to one cluster radius above the ground, and a curtain 0.75 of the
+    crown's width under the fork narrowing to 0.5 at the ground (most of it in front), each
+    attached to its nearest limb node so it sways with the crown; the trunk is hidden from the
+    fork to the ground."""
+    rng = _rng(cfg, _S_SKIRT)
+    split_z = float(tree.rest[tree.branch_nodes[0][-1], 2])
+    crown = np.nonzero(tree.depth_level >= 1)[0]
+    pts = tree.rest[crown]
+    cx, half = 0.5 * (pts[:, 0].min() + pts[:, 0].max()), 0.5 * np.ptp(pts[:, 0])
+    zs = np.arange(0.8 * r0, split_z + r0, 0.8 * r0)
+    col = np.stack([rng.normal(0, 0.3 * r0, len(zs)), rng.uniform(-1.2, -0.6, len(zs)) * r0, zs], 1)
+    # the curtain: 0.75 of the crown's width under the fork, narrowing to 0.5 at the ground
+    n = int(max(8, round(1.25 * half * split_z / (1.2 * r0) ** 2)))
+    z = rng.uniform(0.8 * r0, split_z + r0, n)
+    w = half * (0.5 + 0.25 * np.clip(z / split_z, 0, 1))
+    cur = np.stack([cx + w * rng.uniform(-1, 1, n), rng.uniform(-1.5, 1.0, n) * r0, z], 1)
+    centres = np.concatenate([col, cur])
+    near = np.argmin(((centres[:, None, :] - pts[None]) ** 2).sum(-1), axis=1)
+    return centres, r0 * rng.uniform(1.0, 1.3, len(centres)), crown[near]
 
 
 def _fill_sites(tree: Tree, rng: np.random.Generator, count: int, r0: float):

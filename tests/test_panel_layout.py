@@ -257,7 +257,7 @@ def test_progress_moves_at_an_even_pace_over_a_reconstruction():
     fractions = [f for _, _, f in log]
     assert fractions == sorted(fractions) and fractions[-1] == pytest.approx(1.0)
     ends = [(stage, f, t / total) for k, (t, stage, f) in enumerate(log) if k + 1 == len(log) or log[k + 1][1] != stage]
-    assert [s for s, _, _ in ends][:6] == ["tracking", "hierarchy", "skeleton", "foreground", "lift", "motion"]
+    assert [s for s, _, _ in ends][:6] == ["tracking", "hierarchy", "foreground", "skeleton", "lift", "motion"]
     table = ", ".join(f"{s} {f:.2f} at {share:.2f}" for s, f, share in ends)
     print(f"bar at each stage's end vs share of {total:.2f} s: {table}")
     assert all(abs(f - share) <= 0.15 for _, f, share in ends), table

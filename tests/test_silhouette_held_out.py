@@ -43,6 +43,7 @@ def test_held_out_silhouettes_cover_the_video_tree(held_out, variant, tmp_path):
     """IoU ≥ 0.7 against the true mask of frame 1 on seed 2 of every wind and look variant (the
     backlit one: a dark crown with no inner corners against an overcast sky, shadowed ground)."""
     res = held_out[variant]
+    assert res.skeleton.hidden_trunk == (variant == "hidden")    # only a crown on the ground hides its trunk
     tree = pipeline.build_3d(res, pipeline.Settings(), name="Sil")
     build.build_tree(bpy.context, tree, "Sil")
     sil = render_silhouette(tree, str(tmp_path / "sil.png"))

@@ -233,6 +233,12 @@ def trunk_pixels(shape: tuple[int, int], parents: np.ndarray, nodes_px: np.ndarr
     return tube
 
 
+def hidden_bark() -> LeafColour:
+    """The bark's colour when the crown hides the trunk (its pixels are foliage): :data:`BARK_SRGB`."""
+    return LeafColour(BARK_SRGB[None].astype(np.float32), BARK_SRGB.copy(), "default",
+                      "the crown hides the trunk (what is drawn there is foliage): a plausible bark colour")
+
+
 def bark_colour(frame_bgr: np.ndarray, trunk: np.ndarray, tree_px: np.ndarray | None,
                 light: SceneLight | None = None) -> LeafColour:
     """The bark's albedo from frame 1's trunk pixels ``trunk (H, W)`` (:func:`trunk_pixels`, only

@@ -39,8 +39,8 @@ SKELETON_KINDS = ("traced", "paper")
 #: moves at an even pace; before, tracking had 70 % of the 2D bar and the motion 20 % of the whole.
 #: Frame 1's foreground (read again, colour tests and the graph cut at ≤ 640 px) 0.35–0.6 s at
 #: 480×360 whatever the length.
-STAGE_COSTS_2D = {"tracking": (0.04, 0.007), "hierarchy": (0.12, 0.0), "skeleton": (0.15, 0.002),
-                  "foreground": (0.5, 0.0)}
+STAGE_COSTS_2D = {"tracking": (0.04, 0.007), "hierarchy": (0.12, 0.0), "foreground": (0.5, 0.0),
+                  "skeleton": (0.15, 0.002)}
 
 
 @dataclass
@@ -160,18 +160,18 @@ def run(video: str, outline_path, settings: ReconstructSettings | None = None,
                 cache.save(s.cache_dir, key, tracks, maps, hier)
             except OSError:
                 pass                # a cache that cannot be written only costs time
-    sk_prog = parts["skeleton"]
-    if s.skeleton == "paper":
-        skel = paper_skeleton(tracks, hier, outline, alpha=s.fold_alpha, progress=sk_prog)
-    else:
-        skel = traced_skeleton(tracks, hier, outline, maps, s.trace, sk_prog)
-    note = confidence_warning(skel.confidence) if skel.confidence is not None else None
-    if note:
-        skel.warnings.append(note)
     report(parts["foreground"], "foreground", 0.0)
     frame = frame_one(info, start, outline.mask.shape)
     fg = foreground(frame, outline.mask) if frame is not None else None
     report(parts["foreground"], "foreground", 1.0)
+    sk_prog = parts["skeleton"]
+    if s.skeleton == "paper":
+        skel = paper_skeleton(tracks, hier, outline, alpha=s.fold_alpha, progress=sk_prog)
+    else:
+        skel = traced_skeleton(tracks, hier, outline, maps, s.trace, sk_prog, None if fg is None else fg.mask)
+    note = confidence_warning(skel.confidence) if skel.confidence is not None else None
+    if note:
+        skel.warnings.append(note)
     return Result(info, outline, start, stop, tracks, hier, maps, skel, fg)
 
 

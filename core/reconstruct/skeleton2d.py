@@ -36,7 +36,8 @@ class Skeleton2D:
     float32 pixels in frame-1 coordinates; ``level (N,)`` int32 branching order (0 on the trunk,
     +1 after every bifurcation); ``fps`` frames per second; ``kind`` "traced" or "paper";
     ``confidence (F, N)`` float32 motion confidence in [0, 1) (:mod:`.node_motion`; None: not
-    measured); ``times (F,)`` seconds from the first frame (None: ``index / fps``).
+    measured); ``times (F,)`` seconds from the first frame (None: ``index / fps``);
+    ``hidden_trunk`` the crown hides the trunk (it was drawn, not traced: its pixels are foliage).
     """
 
     parents: np.ndarray
@@ -47,6 +48,7 @@ class Skeleton2D:
     warnings: list[str] = field(default_factory=list)
     confidence: np.ndarray | None = None
     times: np.ndarray | None = None
+    hidden_trunk: bool = False
 
     @property
     def n_nodes(self) -> int:

@@ -16,6 +16,10 @@
 5. The pixel tree is cut into chains between the root, branch points and tips, resampled every
    ``spacing`` px, short spurs pruned, and made binary.
 
+When the crown hangs to the ground in front of its trunk (:func:`hidden_trunk`: frame 1's tree is
+wide at its base), the trunk cannot be traced: it rises from the tree's lowest point, walled off
+so every path climbs it to its top, and foliage beside it below the top is no branch end.
+
 When no bark evidence exists (a dense, front-lit crown), the skeleton is built from the
 hierarchy alone (:func:`hierarchy_geometry`: a straight trunk, clusters where their children
 meet, twigs grown as a spanning tree), so a valid skeleton always comes out, with a warning.
@@ -63,6 +67,8 @@ class TraceParams:
     background_cost: float = 6.0     # extra cost per px of what frame 1 shows as background
     bark_colour_tol: float = 2.0     # CIELAB distance beyond the trunk's own colour spread
     max_bark_share: float = 0.3      # a crown more bark-coloured than this: colour tells nothing
+    base_width: float = 0.3          # outline this share of its widest row wide at 5 % of its height: hidden trunk
+    hidden_trunk: float = 0.3        # a hidden trunk rises to this share of the height (a broadleaf's first fork)
 
 
 def relative_decay(x: np.ndarray, inside: np.ndarray) -> np.ndarray:
@@ -305,10 +311,12 @@ def foliage_targets(hier: Hierarchy, p0: np.ndarray, per_target: int) -> tuple[n
 
 
 def hierarchy_geometry(hier: Hierarchy, p0: np.ndarray, base: np.ndarray, size: float,
-                       twigs: np.ndarray, owner: np.ndarray, spacing: float) -> tuple[np.ndarray, np.ndarray]:
+                       twigs: np.ndarray, owner: np.ndarray, spacing: float,
+                       trunk_top: float | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Skeleton from the hierarchy alone (no bark seen): a straight trunk from ``base`` up to the
-    lower crown, then every cluster at the point where its two children meet (leaf clusters at
-    their centroid, twig ends growing from their leaf cluster), joined by straight chains.
+    lower crown (or to row ``trunk_top`` for a hidden trunk), then every cluster at the point
+    where its two children meet (leaf clusters at their centroid, twig ends growing from their
+    leaf cluster), joined by straight chains.
 
     ``p0 (P, 2)`` track positions, ``twigs (K, 2)`` with ``owner (K,)`` leaf cluster ids, all in
     the same px as ``base``; ``size`` tree height and ``spacing`` chain node spacing (px).
@@ -319,6 +327,8 @@ def hierarchy_geometry(hier: Hierarchy, p0: np.ndarray, base: np.ndarray, size: 
                       for c, m in enumerate(hier.members)], float)
     # trunk top: on the vertical through the base, at the lower crown (85% of tracks above it)
     y_top = min(max(place[0, 1], float(np.quantile(p0[hier.members[0], 1], 0.85))), base[1] - 0.15 * size)
+    if trunk_top is not None:
+        y_top = float(trunk_top)
     place[0] = [base[0], y_top]
     parents, pos = [-1], [np.asarray(base, float)]
     node_of: dict = {}
@@ -375,6 +385,32 @@ def trunk_base(ridge: np.ndarray, evidence: np.ndarray, mask: np.ndarray) -> tup
     return x, int(y)
 
 
+def hidden_trunk(mask: np.ndarray, params: TraceParams, outline: np.ndarray | None = None) -> tuple[int, int, int, float] | None:
+    """A trunk the crown hides (issue 19): when the tree's pixels ``mask (h, w)`` (frame 1's
+    foreground, or the outline) are wider at 5 % of the outline's height above the outline's
+    lowest row (``outline (h, w)``; ``mask``'s own when None) than ``params.base_width`` of their
+    widest row, what stands on the ground is foliage (a trunk is a small share of its crown's
+    width), so the trunk cannot be seen. (Measured at the outline's base, not the tree pixels':
+    a trunk the colour test missed must not make the crown's lower edge look like the ground.)
+    Returns ``(x, y, top_y, ratio)``: the base in working px at the tree's lowest point in the
+    column of its pixels' median x (a crown's weight stands over its trunk), the trunk's top
+    ``params.hidden_trunk`` of the height above it (no fork can be seen: a broadleaf's first fork
+    is at about that share) and the width ratio measured; None when the base is narrow."""
+    ref = mask if outline is None else outline
+    rows = np.flatnonzero(ref.any(1))
+    if len(rows) < 10 or not mask.any():
+        return None
+    top, bot = int(rows.min()), int(rows.max())
+    width = mask.sum(1)
+    ratio = float(width[int(round(bot - 0.05 * (bot - top)))] / max(width.max(), 1))
+    if ratio <= params.base_width:
+        return None
+    x = int(np.median(np.nonzero(mask)[1]))                 # a crown's mass balances over its trunk
+    col = np.flatnonzero(mask[:, max(x - 2, 0):x + 3].any(1))
+    y = int(col.max()) if len(col) else bot
+    return x, y, int(round(y - params.hidden_trunk * (y - top))), ratio
+
+
 def with_frame1(params: TraceParams, maps: AppearanceMaps, rn: np.ndarray,
                 size: float) -> tuple[np.ndarray, np.ndarray | None]:
     """The clip's normalized ridge strength ``rn (h, w)`` joined with frame 1's (see
@@ -396,8 +432,11 @@ def with_frame1(params: TraceParams, maps: AppearanceMaps, rn: np.ndarray,
 def _trace_paths(params: TraceParams, mask: np.ndarray, rn: np.ndarray, ridge: np.ndarray,
                  sky: np.ndarray, background: np.ndarray | None, hier: Hierarchy, p0: np.ndarray,
                  twigs: np.ndarray, base: tuple[int, int], size: float,
-                 progress: ProgressFn | None) -> tuple[np.ndarray, np.ndarray]:
-    """Steps 3–5 of the module docstring on working-resolution maps; returns (parents, pos px)."""
+                 progress: ProgressFn | None, trunk_top: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Steps 3–5 of the module docstring on working-resolution maps; returns (parents, pos px).
+    ``trunk_top``: row of a hidden trunk's top (:func:`hidden_trunk`); the paths then all rise
+    from the base up the column above it to that row (walls on both sides), so the crown
+    branches from the trunk's top, foliage below it hanging from the limbs."""
     h, w = mask.shape
     bx, by = base
     cost = 1.0 + params.foliage_cost * (1.0 - rn) ** 2 + params.sky_cost * sky
@@ -406,7 +445,18 @@ def _trace_paths(params: TraceParams, mask: np.ndarray, rn: np.ndarray, ridge: n
     rmax = float(ridge[mask].max()) if mask.any() else 0.0
     if rmax > 1e-6:   # a small pull toward the ridge crest (no plateau across a wide trunk)
         cost -= 0.5 * np.sqrt(ridge / rmax)
-    G = grid_graph(cost.astype(np.float64), mask)
+    graph_mask = mask
+    if trunk_top is not None and trunk_top < by:
+        graph_mask = mask.copy()
+        rows = slice(trunk_top, by + 1)
+        cost[rows, bx] = 0.3                                    # the trunk: cheaper than any crest
+        wall = int(np.ceil(params.merge_radius * size)) + 2     # wider than a path's merge radius
+        for side in (-1, 1):                                    # walls: nothing leaves it below its top
+            xs = [bx + side * d for d in range(1, wall + 1) if 0 <= bx + side * d < w]
+            graph_mask[trunk_top + 2:, xs] = False
+        graph_mask[by + 1:, bx] = False                         # nor under the base
+        graph_mask[rows, bx] = True
+    G = grid_graph(cost.astype(np.float64), graph_mask)
     root = by * w + bx
     dist, pred = dijkstra(G, directed=False, indices=root, return_predecessors=True)
     report(progress, "skeleton", 0.5)
@@ -433,6 +483,12 @@ def _trace_paths(params: TraceParams, mask: np.ndarray, rn: np.ndarray, ridge: n
     thr = max(0.3, float(np.percentile(rn[mask], 90)))
     targets += ridge_targets((rn > thr) & mask, root, dist, params.min_fragment * size)
     targets = [t for t in targets if t != root and np.isfinite(dist[t])]
+    if trunk_top is not None:
+        # foliage in front of a hidden trunk, or under its top closer to it than half its depth
+        # below the top, is no branch end: a branch to it would hang down along the trunk
+        tx, ty = np.array(targets, int) % w, np.array(targets, int) // w
+        hang = (ty > trunk_top) & (np.abs(tx - bx) < 0.5 * (ty - trunk_top) + 1)
+        targets = [t for t, drop in zip(targets, hang) if not drop]
     # merge radius: a share of the tree's size, wider across thick visible branches
     body = ((rn > 0.3) & mask).astype(np.uint8)
     half_width = cv2.distanceTransform(body, cv2.DIST_L2, 3)
@@ -444,8 +500,10 @@ def _trace_paths(params: TraceParams, mask: np.ndarray, rn: np.ndarray, ridge: n
 
 def traced_skeleton(tracks: Tracks, hier: Hierarchy, outline: Outline, maps: AppearanceMaps,
                     params: TraceParams | None = None,
-                    progress: ProgressFn | None = None) -> Skeleton2D:
-    """Trace the skeleton (see module docstring) and move its nodes with the tracks."""
+                    progress: ProgressFn | None = None, tree_mask: np.ndarray | None = None) -> Skeleton2D:
+    """Trace the skeleton (see module docstring) and move its nodes with the tracks.
+    ``tree_mask (H, W)`` frame 1's tree pixels at the outline's size (the foreground), which
+    tells a crown that hides its trunk (:func:`hidden_trunk`; the outline when None)."""
     params = params or TraceParams()
     f = maps.factor
     mask = maps.mask
@@ -460,18 +518,27 @@ def traced_skeleton(tracks: Tracks, hier: Hierarchy, outline: Outline, maps: App
         rn, background = with_frame1(params, maps, rn, size)
     has_evidence = rscale > 1e-6 and float((rn > 0.3).sum()) > 0.02 * size * size / 10
     sky = sky_likeness(maps)
-    bx, by = trunk_base(ridge, ev, mask)
+    tree = mask
+    if tree_mask is not None:
+        tree = cv2.resize(np.asarray(tree_mask, np.uint8), mask.shape[::-1], interpolation=cv2.INTER_NEAREST) > 0
+        tree &= mask
+    hidden = hidden_trunk(tree, params, mask)
+    bx, by = trunk_base(ridge, ev, mask) if hidden is None else hidden[:2]
+    if hidden is not None:
+        warnings.append(f"the crown reaches the ground (at its base the tree is {hidden[3]:.0%} as wide as at "
+                        f"its widest): the trunk is hidden, so it rises from the tree's lowest point up to "
+                        f"{params.hidden_trunk:.0%} of the height")
     p0 = tracks.points[0] * f
     twigs, owner = foliage_targets(hier, p0, max(params.twig_tracks, len(hier.members[0]) // params.max_twigs))
     report(progress, "skeleton", 0.2)
     if has_evidence:
         parents, pos = _trace_paths(params, mask, rn, ridge, sky, background, hier, p0, twigs, (bx, by),
-                                    size, progress)
+                                    size, progress, None if hidden is None else hidden[2])
     else:
         warnings.append("no bark visible between the leaves: the skeleton follows the motion "
                         "hierarchy with a straight trunk")
         parents, pos = hierarchy_geometry(hier, p0, np.array([bx, by], float), size, twigs, owner,
-                                          params.spacing * size)
+                                          params.spacing * size, None if hidden is None else hidden[2])
     report(progress, "skeleton", 0.7)
     parents, pos = binarize(parents, pos)
     pos = pos / f
@@ -480,4 +547,4 @@ def traced_skeleton(tracks: Tracks, hier: Hierarchy, outline: Outline, maps: App
     mo = follow_tracks(pos, tracks, NODE_MOTION_SCALE * crown_scale(outline), fixed)
     report(progress, "skeleton", 1.0)
     return Skeleton2D(parents, mo.nodes, branching_level(parents), tracks.fps, "traced", warnings,
-                      confidence=mo.confidence, times=tracks.times)
+                      confidence=mo.confidence, times=tracks.times, hidden_trunk=hidden is not None)
