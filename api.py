@@ -38,7 +38,7 @@ __all__ = ["Cancelled", "InputError", "Result", "Tree3D", "build_3d", "build_tre
 #: frames, scale, height_m, curliness, bark, fit_branches, cache_dir, ...).
 SHORTCUTS = {
     "twigs": "twig depth, 0..6 (0: none)",
-    "conifer": "keep a conifer's straight leader in the 3D lift (bool)",
+    "conifer": "the same as form=\"conifer\" (bool)",
     "solver": "3D motion solver: probabilistic or deterministic",
     "leaves": "leaf clusters (bool; False: bare branches)",
     "leaf_density": "share of the leaf seeds kept, (0, 1]",
@@ -59,7 +59,8 @@ def settings(**kw: Any) -> pipeline.Settings:
         if key == "twigs":
             s.twigs = TwigParams(depth=int(value)) if not isinstance(value, TwigParams) else value
         elif key == "conifer":
-            s.lift.conifer = bool(value)
+            if value:
+                s.form = "conifer"
         elif key == "solver":
             s.motion.solver = str(value)
         elif key == "leaves" and not (value is None or dataclasses.is_dataclass(value)):

@@ -75,8 +75,11 @@ def build_parser() -> argparse.ArgumentParser:
                         "parents")
     p.add_argument("--scale", type=float, default=_default(R, "scale"),
                    help=f"downscale the video by this factor, {_range(R, 'scale')}, for speed (default %(default)s)")
-    p.add_argument("--conifer", action="store_true",
-                   help="conifer: keep the straight central leader fixed in the 3D lift")
+    p.add_argument("--form", choices=spec(R, "form").choices, default=_default(R, "form"),
+                   help="the tree's form: auto (default: a crown narrowing to its top is a conifer, else a "
+                        "broadleaf), broadleaf, conifer (a leader to the top with whorls, kept straight in the lift) "
+                        "or palm (a trunk with a crown of fronds from its top)")
+    p.add_argument("--conifer", action="store_true", help="the same as --form conifer")
     p.add_argument("--solver", choices=spec(MotionParams, "solver").choices, default=_default(MotionParams, "solver"),
                    help="3D motion solver (default probabilistic, paper §4; deterministic: sphere/line-of-sight "
                         "baseline)")
@@ -282,7 +285,7 @@ def settings_from_args(args) -> pipeline.Settings:
     """The :class:`~.core.pipeline.Settings` of a reconstruction asked for by ``args``, checked
     (:func:`.api.settings`: the same keywords a script passes)."""
     return api.settings(levels=args.levels, skeleton=args.skeleton, frames=args.frames, scale=args.scale,
-                        height_m=args.height, conifer=args.conifer, solver=args.solver, twigs=args.twigs,
+                        height_m=args.height, form="conifer" if args.conifer else args.form, solver=args.solver, twigs=args.twigs,
                         fit_branches=not args.no_branch_fit, curliness=args.curliness, bark=args.bark,
                         leaves=not args.no_leaves, leaf_density=args.leaf_density, leaf_cards=args.leaf_cards,
                         flutter_hz=args.flutter_hz, leaf_colour=args.leaf_colour)

@@ -31,6 +31,7 @@ class TreeMeta(TypedDict, total=False):
     height_px: float
     metres_per_px: float
     conifer: bool
+    form: str
     mu_deg: float
     envelope: EnvelopeMeta
     mesh: dict[str, Any]
@@ -79,6 +80,8 @@ KEYS: dict[str, Key] = {
     "metres_per_px": Key("m/px", ("pipeline.build_3d", "growth.grow_tree"),
                          "scale from the lift's plane to the scene (the tree is height_m tall)"),
     "conifer": Key("bool", ("pipeline.build_3d", "growth.grow_tree"), "the leader was kept straight in the lift"),
+    "form": Key("broadleaf|conifer|palm", ("pipeline.build_3d", "growth.grow_tree"),
+                "the tree's form (forms.TREE_FORMS): given, or detected from the outline"),
     "mu_deg": Key("degrees", ("pipeline.build_3d", "growth.grow_tree"), "the lift's mean branching angle μ"),
     "envelope": Key("m (EnvelopeMeta)", ("pipeline.build_3d", "growth.grow_tree"), "the crown envelope Ω"),
     "mesh": Key("{curliness 0..1, bark, seed}", ("pipeline.build_3d", "cli"),

@@ -124,7 +124,8 @@ def build_3d(res: Result, s: Settings | None = None, name: str = "Tree",
             radius_px = vf.radius_px
             if radius_px is not None:               # onto the branches' centre lines, every frame
                 sk = replace(sk, nodes2d=(sk.nodes2d + vf.shift_px[None]).astype(np.float32))
-    lifted = lift(sk, res.outline, s.lift, parts["lift"])
+    lift_params = s.lift if s.lift.conifer or res.form != "conifer" else replace(s.lift, conifer=True)
+    lifted = lift(sk, res.outline, lift_params, parts["lift"])
     base = sk.nodes2d[0, 0].astype(float)
     targets = image_to_plane(sk.nodes2d.astype(float), base)[..., [0, 2]]
     mo = solve_motion(lifted.nodes, sk.parents, sk.level, targets, s.motion, parts["motion"], sk.confidence)
@@ -135,7 +136,7 @@ def build_3d(res: Result, s: Settings | None = None, name: str = "Tree",
     else:
         radius = pipe_radii(sk.parents, s.tip_radius * s.height_m, s.pipe_exponent)
     meta: TreeMeta = {"height_px": height_px, "metres_per_px": scale, "solver": s.motion.solver,
-            "conifer": s.lift.conifer, "mu_deg": float(np.degrees(lifted.mu)),
+            "conifer": lift_params.conifer, "form": res.form, "mu_deg": float(np.degrees(lifted.mu)),
             "envelope": envelope_to_meta(lifted.envelope, scale),
             "mesh": {"curliness": float(s.curliness), "bark": s.bark, "seed": int(s.twigs.seed)},
             "base_px": [float(base[0]), float(base[1])],          # trunk base in frame 1 (x, y) px

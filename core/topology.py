@@ -93,3 +93,14 @@ def branching_level(parents: np.ndarray) -> np.ndarray:
         if p >= 0:
             level[n] = level[p] + (1 if len(ch[p]) >= 2 else 0)
     return level
+
+
+def trunk_top(parents: np.ndarray) -> int:
+    """The node where the single chain from the root ends (its first fork, or the last node of a
+    tree without one): a palm's crown top."""
+    parents = np.asarray(parents)
+    kids = np.bincount(parents[parents >= 0], minlength=len(parents))
+    n = 0
+    while kids[n] == 1:
+        n = int(np.flatnonzero(parents == n)[0])
+    return n

@@ -42,7 +42,7 @@ def settings_from(props) -> pipeline.Settings:
                           scale=props.scale,
                           frames=f"{props.frame_start}:{props.frame_end}" if props.use_frame_range else None,
                           height_m=props.height_m, cache_dir=cache_dir())
-    s.lift.conifer = props.conifer
+    s.form = "conifer" if props.conifer and props.form == "auto" else props.form
     s.lift.candidates = props.candidates
     s.motion.solver = props.solver
     s.motion.sigma_track = props.sigma_track

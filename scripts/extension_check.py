@@ -82,7 +82,7 @@ def main() -> int:
 
     api = pkg.api                          # the public scripting API, as a user script reaches it
     library = api.species_library()
-    assert {"broad", "sparse", "conifer"} <= set(library), f"species library incomplete: {sorted(library)}"
+    assert {"broad", "sparse", "conifer", "palm"} <= set(library), f"species library incomplete: {sorted(library)}"
 
     sample = os.path.abspath(a.sample)
     t = time.perf_counter()

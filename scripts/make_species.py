@@ -2,8 +2,9 @@
 
     .venv/bin/python scripts/make_species.py [--out species] [--work DIR]
 
-broad and sparse are the committed samples (sample_videos/); conifer is generated with
-tests/samples.py (variant "conifer") into DIR and lifted with the conifer setting (leader kept).
+broad and sparse are the committed samples (sample_videos/); conifer and palm are generated with
+tests/samples.py (variants "conifer" and "palm") into DIR, the conifer traced and lifted as one
+(leader kept) and the palm as a palm (a trunk with a crown of fronds).
 Each is reconstructed with the default settings (pipeline.run + build_3d, 10 m tall), then
 species.fit_species writes <name>.json.
 """
@@ -33,12 +34,12 @@ def main(argv=None) -> int:
     from samples import committed, generate, plain_settings
     work = args.work or tempfile.mkdtemp(prefix="species-")
     os.makedirs(args.out, exist_ok=True)
-    for name in ("broad", "sparse", "conifer"):
+    for name in ("broad", "sparse", "conifer", "palm"):
         t0 = time.time()
         s = plain_settings()
-        if name == "conifer":
-            folder = generate("conifer", os.path.join(work, "conifer"))
-            s.lift.conifer = True
+        if name in ("conifer", "palm"):
+            folder = generate(name, os.path.join(work, name))
+            s.form = name
         else:
             folder = committed(name)
         res = pipeline.run(os.path.join(folder, "video.mp4"), os.path.join(folder, "outline.json"), s)

@@ -8,7 +8,8 @@ import pytest
 import report
 
 from tree_from_video.core import pipeline
-from tree_from_video.core.reconstruct.trace import TraceParams, hidden_trunk
+from tree_from_video.core.reconstruct.stems import hidden_trunk
+from tree_from_video.core.reconstruct.trace import TraceParams
 
 from samples import generate, load_truth, plain_settings, video_path
 
@@ -43,12 +44,13 @@ def test_hidden_trunk_detection_by_hand():
     h, w = 200, 200
     yy, xx = np.mgrid[0:h, 0:w]
     blob = ((xx - 100) / 60.0) ** 2 + ((yy - 110) / 80.0) ** 2 <= 1          # rows 30..190
-    got = hidden_trunk(blob, TraceParams())
+    p = TraceParams()
+    got = hidden_trunk(blob, p.base_width, p.hidden_trunk)
     assert got is not None
     x, y, top, ratio = got
     assert (x, y) == (100, 190) and top == round(190 - 0.3 * 160) and ratio > 0.3
     tree = (((xx - 100) / 60.0) ** 2 + ((yy - 80) / 50.0) ** 2 <= 1) | ((abs(xx - 100) <= 4) & (yy <= 190))
-    assert hidden_trunk(tree, TraceParams()) is None
+    assert hidden_trunk(tree, p.base_width, p.hidden_trunk) is None
 
 
 @pytest.mark.slow

@@ -229,7 +229,7 @@ def test_presets_ship_with_the_add_on_so_the_menu_is_never_missing_paths(addon):
         text = open(os.path.join(presets.SHIPPED_DIR, f)).read()
         assert sorted(line.split(" = ")[0].rsplit(".", 1)[1] for line in text.splitlines()[1:] if line) == \
             sorted(presets.PRESET_VALUES), f
-    addon.levels, addon.conifer, addon.scale = 8, True, 0.25
+    addon.levels, addon.form, addon.scale = 8, "palm", 0.25
     bpy.ops.script.execute_preset(filepath=os.path.join(presets.SHIPPED_DIR, "Default.py"),
                                   menu_idname="TREE_MT_presets")
     for name in presets.PRESET_VALUES:                   # Default is the registered defaults

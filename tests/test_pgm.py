@@ -166,12 +166,15 @@ def test_load_species_errors(tmp_path):
 
 def test_species_library_ships_the_samples():
     lib = species.species_library()
-    assert {"broad", "sparse", "conifer"} <= set(lib)
+    assert {"broad", "sparse", "conifer", "palm"} <= set(lib)
     for name, path in lib.items():
         m = species.load_species(path)
         assert m.name == name and m.conifer == (name == "conifer")
+        assert m.form == {"conifer": "conifer", "palm": "palm"}.get(name, "broadleaf")
         assert m.sway_excursion is None or m.sway_excursion > 0      # fitted before it was measured: None
-        assert 0 < m.trunk_frac < 1 and m.n_bifurcations >= 10
+        # a palm: one long trunk and a crown of a few fronds (forks only where binarized at its top)
+        assert 0 < m.trunk_frac < 1 and m.n_bifurcations >= (5 if name == "palm" else 10)
+        assert (m.palm is not None and m.palm["fronds"] >= 5) == (name == "palm")
 
 
 def test_fit_species_rejects_unusable_trees():

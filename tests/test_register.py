@@ -133,16 +133,16 @@ def test_presets_save_and_restore_settings():
     path = None
     try:
         props = bpy.context.scene.tree_video
-        props.levels, props.conifer, props.solver, props.height_m = 7, True, "deterministic", 23.0
+        props.levels, props.form, props.solver, props.height_m = 7, "palm", "deterministic", 23.0
         assert bpy.ops.tree_video.preset_add(name="Test Spruce") == {"FINISHED"}
         folder = bpy.utils.user_resource("SCRIPTS", path=os.path.join("presets", presets.PRESET_SUBDIR))
         path = os.path.join(folder, presets.TREE_OT_preset_add.as_filename("Test Spruce") + ".py")
         assert os.path.isfile(path)
         text = open(path).read()
         assert "bpy.context.scene.tree_video.levels = 7" in text and "video_path" not in text
-        props.levels, props.conifer, props.solver, props.height_m = 5, False, "probabilistic", 10.0
+        props.levels, props.form, props.solver, props.height_m = 5, "auto", "probabilistic", 10.0
         bpy.ops.script.execute_preset(filepath=path, menu_idname="TREE_MT_presets")
-        assert (props.levels, props.conifer, props.solver, props.height_m) == (7, True, "deterministic", 23.0)
+        assert (props.levels, props.form, props.solver, props.height_m) == (7, "palm", "deterministic", 23.0)
     finally:
         if path and os.path.exists(path):
             os.unlink(path)

@@ -29,6 +29,7 @@ BARS = {"broad": 0.75, "hard": 0.71, "dense": 0.82, "conifer": 0.7, "gentle": 0.
 def test_rendered_silhouette_overlaps_the_video_tree(runs, variant, tmp_path):
     res = runs[variant]["traced"]
     assert not res.skeleton.hidden_trunk                       # every one stands on a visible trunk
+    assert res.form == ("conifer" if variant == "conifer" else "broadleaf"), res.form_why
     s = pipeline.Settings()          # the product's defaults: twigs 2, curliness 0.3, rough bark
     tree = pipeline.build_3d(res, s, name="Sil")
     built = build.build_tree(bpy.context, tree, "Sil")

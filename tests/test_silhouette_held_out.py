@@ -44,6 +44,7 @@ def test_held_out_silhouettes_cover_the_video_tree(held_out, variant, tmp_path):
     backlit one: a dark crown with no inner corners against an overcast sky, shadowed ground)."""
     res = held_out[variant]
     assert res.skeleton.hidden_trunk == (variant == "hidden")    # only a crown on the ground hides its trunk
+    assert res.form == ("conifer" if variant in ("conifer_storm", "tiny") else "broadleaf"), res.form_why
     tree = pipeline.build_3d(res, pipeline.Settings(), name="Sil")
     build.build_tree(bpy.context, tree, "Sil")
     sil = render_silhouette(tree, str(tmp_path / "sil.png"))

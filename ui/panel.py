@@ -143,7 +143,7 @@ class TREE_PT_reconstruction(_TreePanel, bpy.types.Panel):
         col.prop(props, "skeleton_kind")
         if props.skeleton_kind == "paper":
             col.prop(props, "fold_alpha")
-        col.prop(props, "conifer")
+        col.prop(props, "form")
         col.prop(props, "candidates")
         col.prop(props, "solver")
         col.prop(props, "show_advanced", icon="PREFERENCES")

@@ -25,6 +25,7 @@ CORE_FIELDS = {
     "scale": (ReconstructSettings, "scale"),
     "levels": (ReconstructSettings, "levels"),
     "skeleton_kind": (ReconstructSettings, "skeleton"),
+    "form": (ReconstructSettings, "form"),
     "fold_alpha": (ReconstructSettings, "fold_alpha"),
     "solver": (MotionParams, "solver"),
     "height_m": (Settings, "height_m"),
@@ -106,8 +107,17 @@ class TreeVideoSettings(bpy.types.PropertyGroup):
     fold_alpha: bpy.props.FloatProperty(name="Fold α", subtype="FACTOR", **_core("fold_alpha"),
                                         description="Paper skeleton: share of the way each node moves toward its "
                                                     "parent (x'_i += α(x'_j − x'_i); paper: 0.4)")
+    form: bpy.props.EnumProperty(
+        name="Form", **_core("form"),
+        items=[("auto", "Auto", "Detect the form from the outline: a crown that narrows to its top is a conifer, "
+                                "anything else a broadleaf (choose Palm for a palm)"),
+               ("broadleaf", "Broadleaf", "A trunk forking into limbs"),
+               ("conifer", "Conifer", "A central leader to the top with whorls of side branches, kept straight "
+                                      "in the 3D lift"),
+               ("palm", "Palm", "One trunk, curved as traced, with a crown of fronds from its top")],
+        description="The tree's form: how its branches are traced and lifted, and how trees of its species grow")
     conifer: bpy.props.BoolProperty(name="Conifer Trunk", default=False,
-                                    description="Keep a straight central leader fixed in the 3D lift (conifers)")
+                                    description="Older files and presets: the same as Form › Conifer")
     candidates: bpy.props.IntProperty(name="Depth Samples", default=_L.candidates, min=4, max=256,
                                       description="Depths (toward or away from the camera) tried for each branch when "
                                                   "the 2D skeleton is lifted to 3D: more finds a rounder crown but takes "

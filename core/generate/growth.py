@@ -34,6 +34,7 @@ Deterministic per seed: the same seed and parameters give the same tree.
 """
 from __future__ import annotations
 
+import math
 import os
 from dataclasses import dataclass
 
@@ -488,8 +489,16 @@ def grow_tree(model: SpeciesModel, envelope: Envelope, params: GrowParams | None
     rng_grow, rng_sway = (np.random.default_rng(s) for s in ss.spawn(2))
     region = region_of(env)
     report(progress, "growing", 0.0)
-    g = grow_2d(model, region, p, rng_grow, sub_progress(progress, 0.0, 0.4))
-    rest, lifted = lift_grown(g, region, conifer, p, sub_progress(progress, 0.4, 0.85), env)
+    if model.form == "palm" and model.palm:
+        from .palm import grow_palm
+        par, rest = grow_palm(model.palm, env, rng_grow)
+        g = Grown2D(par, rest[:, [0, 2]], np.ones(len(par), bool), "palm")
+        mu = math.radians(model.mu_deg)
+        report(progress, "growing", 0.85)
+    else:
+        g = grow_2d(model, region, p, rng_grow, sub_progress(progress, 0.0, 0.4))
+        rest, lifted = lift_grown(g, region, conifer, p, sub_progress(progress, 0.4, 0.85), env)
+        mu = float(lifted.mu)
     report(progress, "animating", 0.85)
     phase = None if p.tree_phase is None else np.asarray(p.tree_phase, float)
     rot = sample_rotations(model, g.parents, rest, n_frames, fps, rng_sway, p.time_offset_s, phase)
@@ -508,7 +517,8 @@ def grow_tree(model: SpeciesModel, envelope: Envelope, params: GrowParams | None
     meta: TreeMeta = {"species": model.name, "seed": int(p.seed), "generated": True, "envelope": envelope_meta(env),
             "wind": float(p.wind), "audio": os.fspath(audio) if isinstance(audio, (str, os.PathLike)) else
             (None if audio is None else "envelope"), "stopped": g.stopped, "conifer": bool(conifer),
-            "mu_deg": float(np.degrees(lifted.mu)), "height_px": float(H * k), "metres_per_px": float(1.0 / k),
+            "form": model.form if p.conifer is None else ("conifer" if conifer else "broadleaf"),
+            "mu_deg": float(np.degrees(mu)), "height_px": float(H * k), "metres_per_px": float(1.0 / k),
             "leaf_density": float(p.leaf_density), "node_budget": int(p.node_budget),
             "time_offset_s": float(p.time_offset_s), "sway_scale": float(sway_scale)}
     tree = Tree3D(g.parents.astype(np.int32), nodes3d.astype(np.float32), radius,

@@ -18,6 +18,7 @@ import numpy as np
 from ..detail.grown_leaves import envelope_cover
 from ..envelope import envelope_from_meta
 from ..errors import InputError
+from ..forms import form_of
 from .dirichlet import fit_dirichlet
 from .features import (
     KEEP_FRACTION,
@@ -29,6 +30,7 @@ from .features import (
     spectral_features,
     spectrum_peaks,
 )
+from .palm import palm_info
 
 FORMAT = "tree_from_video.species"
 VERSION = 1
@@ -80,7 +82,8 @@ class SpeciesModel:
     ``orientation_deg = (mean, std)`` of the branches' angle from the vertical in the picture
     plane (branch chords above the trunk; growth uses it as a tropism term); ``mirror_p`` share
     of clockwise (mirrored) bifurcations;
-    ``source_height_m``; ``fps`` and ``n_frames`` of the source; ``conifer``; ``mu_deg`` mean
+    ``source_height_m``; ``fps`` and ``n_frames`` of the source; ``conifer``; ``form``
+    (:data:`..forms.TREE_FORMS`) and, for a palm, ``palm`` (:func:`.palm.palm_info`); ``mu_deg`` mean
     branching angle of the source lift; ``fallbacks`` notes from degenerate fits; ``leaves`` the
     source's foliage (median leaf colour sRGB, cluster radius / height, cards per cluster,
     clusters per thin-branch node, and ``fill`` the share of its envelope's front view they cover)
@@ -112,6 +115,8 @@ class SpeciesModel:
     leaves: dict | None = None      # {"colour": sRGB (3,), "radius_frac", "cards", "per_node"} or None
     sway_excursion: float | None = None   # the source's sway (:func:`sway_excursion`); None: not measured
     widths: tuple | None = None           # (trunk, tip) radius / height (:func:`branch_widths`); None: not measured
+    form: str = "broadleaf"               # forms.TREE_FORMS; files before forms: from ``conifer``
+    palm: dict | None = None              # a palm's crown (palm.palm_info); None for other forms
 
     def to_json(self) -> dict:
         """JSON-able dict (rounded, human-readable)."""
@@ -119,7 +124,9 @@ class SpeciesModel:
             return [float(f"{x:.{d}g}") for x in np.asarray(a, float)]
         return {
             "format": FORMAT, "version": VERSION, "name": self.name,
-            "conifer": bool(self.conifer),
+            "conifer": bool(self.conifer), "form": self.form,
+            **({} if self.palm is None else {"palm": {k: (round(float(v), 5) if isinstance(v, float) else v)
+                                                      for k, v in self.palm.items()}}),
             "shape": {"angle_alpha": arr(self.angles), "length_alpha": arr(self.lengths),
                       "trunk_frac": round(float(self.trunk_frac), 5),
                       "segment_frac": round(float(self.segment_frac), 5),
@@ -192,7 +199,8 @@ class SpeciesModel:
                         int(src["n_frames"]), bool(d.get("conifer", False)), float(sh.get("mu_deg", 38.0)),
                         ver, list(d.get("fallbacks", [])), _leaf_info(d.get("leaves")),
                         None if src.get("sway_excursion") is None else float(src["sway_excursion"]),
-                        _widths(sh))
+                        _widths(sh), form_of(bool(d.get("conifer", False)), d.get("form")),
+                        _palm(d.get("palm")))
         except (KeyError, TypeError, ValueError) as exc:
             raise InputError(f"{where} is incomplete or damaged ({exc.__class__.__name__}: {exc}); "
                              "fit the species again or pick another file") from None
@@ -200,6 +208,16 @@ class SpeciesModel:
                 and 0 < model.min_branch_frac < 1 and model.fps > 0):
             raise InputError(f"{where} has out-of-range shape numbers; fit the species again")
         return model
+
+
+def _palm(d) -> dict | None:
+    if d is None:
+        return None
+    info = {"fronds": int(d["fronds"]), "frond_frac": float(d["frond_frac"]), "tip_deg": float(d["tip_deg"]),
+            "lean": float(d.get("lean", 0.0)), "top_frac": float(d.get("top_frac", 1.0))}
+    if info["fronds"] < 1 or not 0 < info["frond_frac"] < 2:
+        raise ValueError("a palm needs fronds >= 1 and 0 < frond_frac < 2")
+    return info
 
 
 def _widths(sh: dict) -> tuple[float, float] | None:
@@ -323,6 +341,7 @@ def fit_species(tree, name: str, keep: float = KEEP_FRACTION) -> SpeciesModel:
     if len(feats.apex) == 0:
         raise InputError("the tree has no bifurcation to learn from; reconstruct a tree with branches")
     height = float(max(np.ptp(nodes[0, :, 2]), nodes[0, :, 2].max(), 1e-6))
+    form = form_of(bool(tree.meta.get("conifer", False)), tree.meta.get("form"))
     fa, fl = fit_dirichlet(feats.angles), fit_dirichlet(feats.lengths)
     fallbacks = [f"{n}: {f.fallback}" for n, f in (("angles", fa), ("lengths", fl)) if f.fallback]
     # absolute scale: trunk, bone and branch lengths as shares of the height
@@ -357,9 +376,10 @@ def fit_species(tree, name: str, keep: float = KEEP_FRACTION) -> SpeciesModel:
         n_bifurcations=int(len(feats.apex)),
         orientation_deg=_orientation_stats(branch_orientations(parents, nodes[0])),
         mirror_p=float(np.mean(feats.mirrored)), source_height_m=height, fps=float(tree.fps),
-        n_frames=int(nodes.shape[0]), conifer=bool(tree.meta.get("conifer", False)),
+        n_frames=int(nodes.shape[0]), conifer=form == "conifer",
         mu_deg=float(tree.meta.get("mu_deg", 38.0)), fallbacks=fallbacks, leaves=leaf_info(tree),
-        sway_excursion=sway_excursion(nodes, height), widths=branch_widths(parents, tree.radius, height))
+        sway_excursion=sway_excursion(nodes, height), widths=branch_widths(parents, tree.radius, height),
+        form=form, palm=palm_info(parents, nodes[0]) if form == "palm" else None)
 
 
 def branch_widths(parents: np.ndarray, radius: np.ndarray, height: float) -> tuple[float, float]:

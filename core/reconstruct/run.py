@@ -14,12 +14,14 @@ import cv2
 import numpy as np
 
 from ..errors import InputError
+from ..forms import FORMS
 from ..outline import Outline, load_outline, polygon_outline
 from ..params import check, param
 from ..progress import ProgressFn, expected_seconds, report, stage_split
 from . import cache
 from .appearance import AppearanceAccumulator, AppearanceMaps
 from .foreground import Foreground, foreground
+from .form import detect_form
 from .hierarchy import Hierarchy, HierarchyParams, build_hierarchy
 from .node_motion import confidence_warning
 from .skeleton2d import FOLD_ALPHA, Skeleton2D, paper_skeleton
@@ -49,6 +51,7 @@ class ReconstructSettings:
 
     levels: int = param(6, 2, 9, what="levels", fix="the paper uses 5–7")
     skeleton: str = param("traced", choices=SKELETON_KINDS, what="skeleton")
+    form: str = param("auto", choices=FORMS, what="tree form")   # auto: detected from the outline
     fold_alpha: float = param(FOLD_ALPHA, 0.0, 1.0, what="fold α")   # paper skeleton: x'_i += α (x'_j − x'_i)
     frames: str | None = None       # "A:B", 0-based, B exclusive
     scale: float = param(1.0, 0.0, 1.0, lo_open=True, what="scale")   # downscale factor for the video
@@ -60,7 +63,8 @@ class ReconstructSettings:
 @dataclass
 class Result:
     """The 2D reconstruction: the video read, the outline, the frame range ``start..stop-1``, the
-    tracks, the motion hierarchy, the appearance maps and the moving 2D skeleton."""
+    tracks, the motion hierarchy, the appearance maps, the moving 2D skeleton, frame 1's
+    foreground and the tree's form."""
 
     info: VideoInfo
     outline: Outline
@@ -71,6 +75,8 @@ class Result:
     maps: AppearanceMaps
     skeleton: Skeleton2D
     foreground: Foreground | None = None      # frame 1's tree pixels (None: frame 1 unreadable)
+    form: str = "broadleaf"                   # the tree's form (..forms.TREE_FORMS), given or detected
+    form_why: str = ""                        # how it was decided
 
     @property
     def warnings(self) -> list[str]:
@@ -164,15 +170,19 @@ def run(video: str, outline_path, settings: ReconstructSettings | None = None,
     frame = frame_one(info, start, outline.mask.shape)
     fg = foreground(frame, outline.mask) if frame is not None else None
     report(parts["foreground"], "foreground", 1.0)
+    if s.form == "auto":
+        form, why = detect_form(outline.mask)
+    else:
+        form, why = s.form, "chosen"
     sk_prog = parts["skeleton"]
     if s.skeleton == "paper":
         skel = paper_skeleton(tracks, hier, outline, alpha=s.fold_alpha, progress=sk_prog)
     else:
-        skel = traced_skeleton(tracks, hier, outline, maps, s.trace, sk_prog, None if fg is None else fg.mask)
+        skel = traced_skeleton(tracks, hier, outline, maps, s.trace, sk_prog, None if fg is None else fg.mask, form)
     note = confidence_warning(skel.confidence) if skel.confidence is not None else None
     if note:
         skel.warnings.append(note)
-    return Result(info, outline, start, stop, tracks, hier, maps, skel, fg)
+    return Result(info, outline, start, stop, tracks, hier, maps, skel, fg, form, why)
 
 
 def frame_one(info: VideoInfo, start: int, shape: tuple[int, ...]) -> np.ndarray | None:

@@ -30,7 +30,6 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
-import scipy.sparse as sp
 from scipy.sparse.csgraph import dijkstra
 
 from ..outline import Outline
@@ -40,12 +39,14 @@ from .appearance import AppearanceMaps
 from .frame_evidence import frame_evidence
 from .hierarchy import Hierarchy
 from .node_motion import follow_tracks
+from .pixel_graph import grid_graph
 from .skeleton2d import (
     NODE_MOTION_SCALE,
     Skeleton2D,
     binarize,
     crown_scale,
 )
+from .stems import hidden_trunk, leader_curve, leader_tip
 from .tracks import Tracks
 
 
@@ -120,27 +121,6 @@ def sky_likeness(maps: AppearanceMaps) -> np.ndarray:
                             (0, 0), 2.0)
     smooth = relative_decay(grad, inside)
     return cv2.GaussianBlur((bright * steady * smooth).astype(np.float32), (0, 0), 1.0)
-
-
-def grid_graph(cost: np.ndarray, inside: np.ndarray) -> sp.csr_matrix:
-    """8-connected graph of ``inside`` pixels, edge weight = step length × mean cost."""
-    h, w = cost.shape
-    idx = np.arange(h * w).reshape(h, w)
-    rows, cols, wts = [], [], []
-    for dy, dx in ((0, 1), (1, 0), (1, 1), (1, -1)):
-        ys = slice(0, h - dy)
-        xs = slice(max(0, -dx), w - max(0, dx))
-        ys2 = slice(dy, h)
-        xs2 = slice(max(0, dx), w - max(0, -dx) if dx < 0 else w)
-        a, b = idx[ys, xs], idx[ys2, xs2]
-        ok = inside[ys, xs] & inside[ys2, xs2]
-        c = 0.5 * (cost[ys, xs] + cost[ys2, xs2]) * np.hypot(dy, dx)
-        rows.append(a[ok])
-        cols.append(b[ok])
-        wts.append(c[ok])
-    r, c, wv = np.concatenate(rows), np.concatenate(cols), np.concatenate(wts)
-    g = sp.coo_matrix((wv, (r, c)), shape=(h * w, h * w)).tocsr()
-    return g + g.T
 
 
 def ridge_targets(ridge_mask: np.ndarray, root: int, dist: np.ndarray, min_len: float) -> list[int]:
@@ -385,32 +365,6 @@ def trunk_base(ridge: np.ndarray, evidence: np.ndarray, mask: np.ndarray) -> tup
     return x, int(y)
 
 
-def hidden_trunk(mask: np.ndarray, params: TraceParams, outline: np.ndarray | None = None) -> tuple[int, int, int, float] | None:
-    """A trunk the crown hides (issue 19): when the tree's pixels ``mask (h, w)`` (frame 1's
-    foreground, or the outline) are wider at 5 % of the outline's height above the outline's
-    lowest row (``outline (h, w)``; ``mask``'s own when None) than ``params.base_width`` of their
-    widest row, what stands on the ground is foliage (a trunk is a small share of its crown's
-    width), so the trunk cannot be seen. (Measured at the outline's base, not the tree pixels':
-    a trunk the colour test missed must not make the crown's lower edge look like the ground.)
-    Returns ``(x, y, top_y, ratio)``: the base in working px at the tree's lowest point in the
-    column of its pixels' median x (a crown's weight stands over its trunk), the trunk's top
-    ``params.hidden_trunk`` of the height above it (no fork can be seen: a broadleaf's first fork
-    is at about that share) and the width ratio measured; None when the base is narrow."""
-    ref = mask if outline is None else outline
-    rows = np.flatnonzero(ref.any(1))
-    if len(rows) < 10 or not mask.any():
-        return None
-    top, bot = int(rows.min()), int(rows.max())
-    width = mask.sum(1)
-    ratio = float(width[int(round(bot - 0.05 * (bot - top)))] / max(width.max(), 1))
-    if ratio <= params.base_width:
-        return None
-    x = int(np.median(np.nonzero(mask)[1]))                 # a crown's mass balances over its trunk
-    col = np.flatnonzero(mask[:, max(x - 2, 0):x + 3].any(1))
-    y = int(col.max()) if len(col) else bot
-    return x, y, int(round(y - params.hidden_trunk * (y - top))), ratio
-
-
 def with_frame1(params: TraceParams, maps: AppearanceMaps, rn: np.ndarray,
                 size: float) -> tuple[np.ndarray, np.ndarray | None]:
     """The clip's normalized ridge strength ``rn (h, w)`` joined with frame 1's (see
@@ -429,22 +383,46 @@ def with_frame1(params: TraceParams, maps: AppearanceMaps, rn: np.ndarray,
     return rn, fe.background
 
 
-def _trace_paths(params: TraceParams, mask: np.ndarray, rn: np.ndarray, ridge: np.ndarray,
-                 sky: np.ndarray, background: np.ndarray | None, hier: Hierarchy, p0: np.ndarray,
-                 twigs: np.ndarray, base: tuple[int, int], size: float,
-                 progress: ProgressFn | None, trunk_top: int | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Steps 3–5 of the module docstring on working-resolution maps; returns (parents, pos px).
-    ``trunk_top``: row of a hidden trunk's top (:func:`hidden_trunk`); the paths then all rise
-    from the base up the column above it to that row (walls on both sides), so the crown
-    branches from the trunk's top, foliage below it hanging from the limbs."""
-    h, w = mask.shape
-    bx, by = base
+def trace_cost(params: TraceParams, mask: np.ndarray, rn: np.ndarray, ridge: np.ndarray, sky: np.ndarray,
+               background: np.ndarray | None) -> np.ndarray:
+    """Step 3 of the module docstring: ``(h, w)`` cost per pixel, low on ridges, higher in
+    foliage, highest on sky and on frame 1's background."""
     cost = 1.0 + params.foliage_cost * (1.0 - rn) ** 2 + params.sky_cost * sky
     if background is not None:
         cost = cost + params.background_cost * background
     rmax = float(ridge[mask].max()) if mask.any() else 0.0
     if rmax > 1e-6:   # a small pull toward the ridge crest (no plateau across a wide trunk)
         cost -= 0.5 * np.sqrt(ridge / rmax)
+    return cost
+
+
+def _palm(params: TraceParams, mask: np.ndarray, tree: np.ndarray, cost: np.ndarray, base: tuple[int, int],
+          size: float) -> tuple[np.ndarray, np.ndarray] | None:
+    """A palm's trunk and fronds (:mod:`.palm`) as ``(parents, pos)`` working px, or None."""
+    from .palm import palm_pixel_tree
+    got = palm_pixel_tree(cost, mask, tree & mask, base, size)
+    if got is None:
+        return None
+    parent_px, _, tips = got
+    h, w = mask.shape
+    return simplify_tree(parent_px, base[1] * w + base[0], set(tips), w, params.spacing * size,
+                         params.min_spur * size)
+
+
+def _trace_paths(params: TraceParams, mask: np.ndarray, rn: np.ndarray, ridge: np.ndarray,
+                 sky: np.ndarray, background: np.ndarray | None, hier: Hierarchy, p0: np.ndarray,
+                 twigs: np.ndarray, base: tuple[int, int], size: float,
+                 progress: ProgressFn | None, trunk_top: int | None = None,
+                 leader: tuple[int, int] | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Steps 3–5 of the module docstring on working-resolution maps; returns (parents, pos px).
+    ``trunk_top``: row of a hidden trunk's top (:func:`hidden_trunk`); the paths then all rise
+    from the base up the column above it to that row (walls on both sides), so the crown
+    branches from the trunk's top, foliage below it hanging from the limbs. ``leader`` (x, y):
+    a conifer's top; a straight leader from the base to it costs less than any crest, so every
+    branch climbs it and leaves it about level (whorls), and the top is a target."""
+    h, w = mask.shape
+    bx, by = base
+    cost = trace_cost(params, mask, rn, ridge, sky, background)
     graph_mask = mask
     if trunk_top is not None and trunk_top < by:
         graph_mask = mask.copy()
@@ -456,6 +434,10 @@ def _trace_paths(params: TraceParams, mask: np.ndarray, rn: np.ndarray, ridge: n
             graph_mask[trunk_top + 2:, xs] = False
         graph_mask[by + 1:, bx] = False                         # nor under the base
         graph_mask[rows, bx] = True
+    if leader is not None:
+        line = np.zeros((h, w), np.uint8)
+        cv2.polylines(line, [leader_curve(ridge, mask, (bx, by), leader).round().astype(np.int32)], False, 1, 1)
+        cost[(line > 0) & mask] = 0.3
     G = grid_graph(cost.astype(np.float64), graph_mask)
     root = by * w + bx
     dist, pred = dijkstra(G, directed=False, indices=root, return_predecessors=True)
@@ -482,6 +464,8 @@ def _trace_paths(params: TraceParams, mask: np.ndarray, rn: np.ndarray, ridge: n
     targets += [int(t) for t in snap(np.array(list(meeting_points(hier, p0).values())).reshape(-1, 2))]
     thr = max(0.3, float(np.percentile(rn[mask], 90)))
     targets += ridge_targets((rn > thr) & mask, root, dist, params.min_fragment * size)
+    if leader is not None:
+        targets += [int(t) for t in snap(np.array([leader], float))]
     targets = [t for t in targets if t != root and np.isfinite(dist[t])]
     if trunk_top is not None:
         # foliage in front of a hidden trunk, or under its top closer to it than half its depth
@@ -500,10 +484,13 @@ def _trace_paths(params: TraceParams, mask: np.ndarray, rn: np.ndarray, ridge: n
 
 def traced_skeleton(tracks: Tracks, hier: Hierarchy, outline: Outline, maps: AppearanceMaps,
                     params: TraceParams | None = None,
-                    progress: ProgressFn | None = None, tree_mask: np.ndarray | None = None) -> Skeleton2D:
+                    progress: ProgressFn | None = None, tree_mask: np.ndarray | None = None,
+                    form: str = "broadleaf") -> Skeleton2D:
     """Trace the skeleton (see module docstring) and move its nodes with the tracks.
     ``tree_mask (H, W)`` frame 1's tree pixels at the outline's size (the foreground), which
-    tells a crown that hides its trunk (:func:`hidden_trunk`; the outline when None)."""
+    tells a crown that hides its trunk (:func:`hidden_trunk`; the outline when None). ``form``
+    (:data:`..forms.TREE_FORMS`): a conifer's trunk runs on as its leader to the tree's top
+    (:func:`leader_tip`), every branch leaving it."""
     params = params or TraceParams()
     f = maps.factor
     mask = maps.mask
@@ -522,7 +509,7 @@ def traced_skeleton(tracks: Tracks, hier: Hierarchy, outline: Outline, maps: App
     if tree_mask is not None:
         tree = cv2.resize(np.asarray(tree_mask, np.uint8), mask.shape[::-1], interpolation=cv2.INTER_NEAREST) > 0
         tree &= mask
-    hidden = hidden_trunk(tree, params, mask)
+    hidden = hidden_trunk(tree, params.base_width, params.hidden_trunk, mask)
     bx, by = trunk_base(ridge, ev, mask) if hidden is None else hidden[:2]
     if hidden is not None:
         warnings.append(f"the crown reaches the ground (at its base the tree is {hidden[3]:.0%} as wide as at "
@@ -531,9 +518,17 @@ def traced_skeleton(tracks: Tracks, hier: Hierarchy, outline: Outline, maps: App
     p0 = tracks.points[0] * f
     twigs, owner = foliage_targets(hier, p0, max(params.twig_tracks, len(hier.members[0]) // params.max_twigs))
     report(progress, "skeleton", 0.2)
-    if has_evidence:
+    palm = None
+    if form == "palm" and hidden is None:
+        palm = _palm(params, mask, tree, trace_cost(params, mask, rn, ridge, sky, background), (bx, by), size)
+        if palm is None:
+            warnings.append("no crown of fronds found above a trunk: the palm is traced as a broadleaf")
+    if palm is not None:
+        parents, pos = palm
+    elif has_evidence:
+        tip = leader_tip(tree, bx) if form == "conifer" and hidden is None else None
         parents, pos = _trace_paths(params, mask, rn, ridge, sky, background, hier, p0, twigs, (bx, by),
-                                    size, progress, None if hidden is None else hidden[2])
+                                    size, progress, None if hidden is None else hidden[2], tip)
     else:
         warnings.append("no bark visible between the leaves: the skeleton follows the motion "
                         "hierarchy with a straight trunk")
