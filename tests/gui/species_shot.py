@@ -1,6 +1,6 @@
 """GUI set-up for docs/species.png: the tree reconstructed from sample_videos/broad (left) beside
-three trees grown from its species in its own envelope (issue 19: generated trees look like their
-species — crowns as full, trunks as thick, the same leaf colour).
+three trees grown from its species in its own envelope, with as many nodes as it has (issue 19:
+generated trees look like their species — crowns as full, trunks as thick, the same leaf colour).
 
     real-blender gui-shot docs/species.png --size 1600x900 --wait 12 -- \
         blender --factory-startup --python tests/gui/species_shot.py
@@ -28,7 +28,9 @@ tree = pipeline.build_3d(pipeline.run(os.path.join(folder, "video.mp4"), os.path
                          name="Reconstructed")
 model = species.fit_species(tree, "broad")
 env = envelope_from_meta(tree.meta)
-trees = [tree] + [growth.grow_tree(model, env, growth.GrowParams(seed=seed, n_frames=96, name=f"Generated {seed}"))
+# as many nodes as the reconstruction draws (its twigs included): crowns as full as its own
+trees = [tree] + [growth.grow_tree(model, env, growth.GrowParams(seed=seed, n_frames=96, node_budget=tree.n_nodes,
+                                                                 name=f"Generated {seed}"))
                   for seed in (1, 2, 3)]
 spacing = 1.15 * 2 * max(float(env.radius.max()), 1.0)
 for k, t in enumerate(trees):
@@ -45,7 +47,7 @@ def species_view(space, r3d):
     r3d.view_perspective = "PERSP"
     r3d.view_rotation = (0.72, 0.69, 0.0, 0.0)          # from the front, a little above
     r3d.view_location = (1.5 * spacing, 0.0, 0.45 * float(env.z.max()))
-    r3d.view_distance = 2.4 * spacing
+    r3d.view_distance = 3.3 * spacing
 
 
 bpy.app.timers.register(open_tree_tab(species_view), first_interval=1.0)
