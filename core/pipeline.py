@@ -13,7 +13,7 @@ import numpy as np
 
 from .detail.albedo import SceneLight, bark_colour, hidden_bark, scene_light, trunk_pixels
 from .detail.branch_mesh import MeshParams, check_params
-from .detail.leaf_clusters import LeafParams, check_leaf_params
+from .detail.leaf_clusters import LeafParams, as_fronds, check_leaf_params
 from .detail.leaf_seeds import place_leaves
 from .detail.twigs import TwigParams, add_twigs, check_twig_params
 from .envelope import envelope_to_meta
@@ -159,7 +159,10 @@ def build_3d(res: Result, s: Settings | None = None, name: str = "Tree",
                              fg.mask if fg is not None else None)
         meta["bark_colour"] = (hidden_bark() if sk.hidden_trunk else bark_colour(frame, trunk, tree_px, light)).meta("albedo")
     tree = add_twigs(tree, s.twigs, parts["details"], tree_px)  # after the motion solve, before the leaves
-    return add_leaves(res, tree, s, frame, tree_px, fg.mask if fg is not None else None, light)
+    tree = add_leaves(res, tree, s, frame, tree_px, fg.mask if fg is not None else None, light)
+    if res.form == "palm":                      # a palm's leaflets line its fronds
+        tree.leaves = as_fronds(tree, tree.leaves)
+    return tree
 
 
 def first_frame(res: Result) -> np.ndarray | None:

@@ -33,7 +33,9 @@ class LeafClusters:
     metres of one leaf card's length; ``cards`` leaf cards per cluster; ``seed`` of the template;
     ``scale (S,)`` each cluster's size relative to ``radius`` (smaller near the outline's edge);
     ``leaf_hz``, ``leaf_angle`` (radians): every leaf's own high-frequency flap about its stem,
-    ``leaf_angle · sin(2π leaf_hz t + φ_leaf)`` (:func:`.detail.leaf_clusters.leaf_flap_offsets`)."""
+    ``leaf_angle · sin(2π leaf_hz t + φ_leaf)`` (:func:`.detail.leaf_clusters.leaf_flap_offsets`);
+    ``shape`` ``"cluster"`` (cards round the centre) or ``"frond"`` (a palm's leaflets in pairs
+    along the axis, :func:`.detail.leaf_clusters.frond_template`)."""
 
     node: np.ndarray
     pos: np.ndarray
@@ -48,6 +50,7 @@ class LeafClusters:
     scale: np.ndarray | None = None
     leaf_hz: float = 4.0
     leaf_angle: float = 0.26
+    shape: str = "cluster"
 
     def scales(self) -> np.ndarray:
         """``(S,)`` size of each cluster relative to ``radius`` (1 when not set)."""
@@ -160,7 +163,7 @@ def _arrays(tree: Tree3D) -> dict:
         lv = tree.leaves
         meta["leaves"] = {"radius": float(lv.radius), "leaf_size": float(lv.leaf_size),
                           "cards": int(lv.cards), "seed": int(lv.seed), "leaf_hz": float(lv.leaf_hz),
-                          "leaf_angle": float(lv.leaf_angle)}
+                          "leaf_angle": float(lv.leaf_angle), "shape": str(lv.shape)}
         extra = {f"leaf_{k}": np.asarray(getattr(lv, k) if k != "scale" else lv.scales())
                  for k in LEAF_ARRAYS}
     return dict(parents=tree.parents.astype(np.int32), nodes3d=tree.nodes3d.astype(np.float32),

@@ -189,3 +189,31 @@ def test_a_palm_species_grows_palms(tmp_path):
                 n = int(g.parents[n])
             assert g.leaves is not None and not set(g.leaves.node.tolist()) & on_trunk
     report.add("Palm species and generated palms (tests/test_forms.py)", lines)
+
+
+def test_frond_leaflets_line_the_bone_in_level_pairs(tmp_path):
+    """A palm's leaf clusters are stretches of frond: leaflets in pairs on either side of the
+    carrying bone's line, stems on it within ±radius, spread level (they droop 20°, no roll), and
+    the shape survives the tree file."""
+    from tree_from_video.core.detail.leaf_clusters import as_fronds, frond_template, leaf_mesh
+    from tree_from_video.core.tree3d import LeafClusters, Tree3D, load_tree, save_tree
+    co, uv = frond_template(8, 0.5, 0.3)
+    q = co.reshape(8, 4, 3)
+    stems = 0.5 * (q[:, 0] + q[:, 1])
+    np.testing.assert_allclose(stems[:, [0, 2]], 0.0, atol=1e-12)                # on the midrib (Y)
+    assert np.abs(stems[:, 1]).max() <= 0.5
+    tips = 0.5 * (q[:, 2] + q[:, 3])
+    assert (np.sign(tips[::2, 0]) == 1).all() and (np.sign(tips[1::2, 0]) == -1).all()   # pairs
+    parents = np.array([-1, 0, 1])
+    nodes = np.array([[[0, 0, 0], [0, 0, 5], [3, 0, 5]]], np.float32).repeat(2, 0)   # a level frond along +x
+    tree = Tree3D(parents, nodes, np.ones(3, np.float32), np.zeros(3, np.int32), 24.0, "palm", {"form": "palm"})
+    lv = LeafClusters(np.array([2]), np.array([[2.0, 0, 5]], np.float32), np.array([[0, 0, 1.0]], np.float32),
+                      np.array([[0.2, 0.5, 0.2]], np.float32), np.zeros(1, bool), np.zeros((2, 1), np.float32),
+                      0.5, 0.3, 8)
+    tree.leaves = as_fronds(tree, lv)
+    assert tree.leaves.shape == "frond"
+    np.testing.assert_allclose(tree.leaves.axis[0], [1.0, 0.0, 0.0], atol=1e-6)     # along the bone
+    m = leaf_mesh(tree.leaves)["co"]
+    assert np.ptp(m[:, 0]) > 0.8 and np.ptp(m[:, 2]) < 0.5 * np.ptp(m[:, 1]) + 0.2      # level, along x
+    save_tree(tmp_path / "palm.npz", tree)
+    assert load_tree(tmp_path / "palm.npz").leaves.shape == "frond"

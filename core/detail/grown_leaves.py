@@ -10,7 +10,7 @@ from scipy.spatial import cKDTree
 
 from ..envelope import Envelope
 from ..topology import trunk_top
-from .leaf_clusters import BARK_RADIUS_SHARE, LeafParams, make_clusters
+from .leaf_clusters import BARK_RADIUS_SHARE, LeafParams, as_fronds, make_clusters
 from .leaf_cover import card_footprint, uncovered_sites
 
 #: rows of the raster the envelope's front view is measured on (a cluster is ~10 px across)
@@ -55,7 +55,7 @@ def envelope_cover(leaves, env: Envelope, rows: int = COVER_RASTER_PX) -> float:
     if leaves is None or leaves.count == 0 or not region.any():
         return 0.0
     fp = card_footprint(shape, leaves.pos, leaves.axis, leaves.scales(), leaves.radius,
-                        leaves.leaf_size, leaves.cards, leaves.seed, base, scale)
+                        leaves.leaf_size, leaves.cards, leaves.seed, base, scale, leaves.shape)
     return float((fp & region).sum() / region.sum())
 
 
@@ -109,8 +109,9 @@ def grow_leaves(tree, info: dict, density: float = 1.0, seed: int = 0, params: L
                                   int(info["cards"]), seed, p.max_clusters, rng)
     colour = np.clip(np.asarray(info["colour"], np.float64)[None] * rng.uniform(0.92, 1.08, (len(node), 1)), 0, 1)
     dark = (pos[:, 1] - pos.mean(0)[1]) > 0                 # behind the crown centre
-    return make_clusters(tree, node, pos, colour, dark, radius, info["cards"], seed,
-                         None if size == 1.0 else np.full(len(node), size, np.float32), p)
+    leaves = make_clusters(tree, node, pos, colour, dark, radius, info["cards"], seed,
+                           None if size == 1.0 else np.full(len(node), size, np.float32), p)
+    return as_fronds(tree, leaves) if tree.meta.get("form") == "palm" else leaves
 
 
 def _top_up(node: np.ndarray, pos: np.ndarray, rest: np.ndarray, thin: np.ndarray, anchors: np.ndarray,

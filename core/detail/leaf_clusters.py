@@ -114,6 +114,21 @@ def make_clusters(tree, node: np.ndarray, pos: np.ndarray, colour: np.ndarray, d
                         float(np.radians(p.leaf_angle_deg)))
 
 
+def as_fronds(tree, leaves):
+    """A palm's leaves: ``leaves`` (:class:`LeafClusters`) as stretches of frond — shape
+    ``"frond"``, each one's axis along the bone that carries it (node − its parent, rest pose), so
+    its leaflets line that bone in pairs (:func:`frond_template`). None stays None."""
+    import dataclasses
+    if leaves is None:
+        return None
+    rest = tree.nodes3d[0].astype(np.float64)
+    par = np.asarray(tree.parents)[leaves.node]
+    d = rest[leaves.node] - rest[np.maximum(par, 0)]
+    n = np.linalg.norm(d, axis=1, keepdims=True)
+    axis = np.where(n > 1e-9, d / np.maximum(n, 1e-12), [0.0, 0.0, 1.0])
+    return dataclasses.replace(leaves, axis=axis.astype(np.float32), shape="frond")
+
+
 def cluster_template(cards: int, radius: float, leaf_size: float, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
     """One leaf cluster in its bone's frame (Y = the cluster's main axis, origin at its centre):
     ``cards`` quads, each ``leaf_size`` long and 0.6 × as wide, stem at a point inside the
@@ -139,15 +154,45 @@ def cluster_template(cards: int, radius: float, leaf_size: float, seed: int = 0)
     return corners.reshape(-1, 3), uv
 
 
-def axis_frames(axis: np.ndarray, seed: int = 0) -> np.ndarray:
-    """Rotations ``(S, 3, 3)`` whose Y column is ``axis (S, 3)`` (unit) and a random roll about it."""
+def frond_template(cards: int, radius: float, leaf_size: float, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """A stretch of a palm frond in its bone's frame (Y = the frond's direction, X across it,
+    roughly level): ``cards`` leaflets in pairs along Y from ``−radius`` to ``+radius``, stems on
+    the midrib, each pointing out to its side and 35° forward, drooping 20°, ``leaf_size`` long
+    and 0.25 × as wide (longest mid-stretch). Same layout as :func:`cluster_template`."""
+    rng = np.random.default_rng(seed)
+    C = int(cards)
+    t = (np.arange(C) // 2 + 0.5) / max((C + 1) // 2, 1)              # pairs along the midrib
+    side = np.where(np.arange(C) % 2 == 0, 1.0, -1.0)
+    stem = np.stack([np.zeros(C), radius * (2 * t - 1), np.zeros(C)], 1)
+    fwd, droop = np.radians(35.0), np.radians(20.0)
+    along = np.stack([side * np.cos(fwd) * np.cos(droop), np.full(C, np.sin(fwd)), np.full(C, -np.sin(droop))], 1)
+    along += rng.normal(scale=0.05, size=(C, 3))
+    along /= np.linalg.norm(along, axis=1, keepdims=True)
+    width = np.cross(along, np.array([0.0, 0.0, 1.0]))
+    width /= np.maximum(np.linalg.norm(width, axis=1, keepdims=True), 1e-9)
+    length = leaf_size * (0.6 + 0.4 * np.sin(np.pi * t))[:, None]
+    w = 0.125 * length
+    corners = np.stack([stem - width * w, stem + width * w,
+                        stem + width * w + along * length, stem - width * w + along * length], axis=1)
+    uv = np.tile(np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]), (C, 1))
+    return corners.reshape(-1, 3), uv
+
+
+def template(shape: str, cards: int, radius: float, leaf_size: float, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """The card layout of one cluster of ``shape`` (``"cluster"`` or ``"frond"``)."""
+    return (frond_template if shape == "frond" else cluster_template)(cards, radius, leaf_size, seed)
+
+
+def axis_frames(axis: np.ndarray, seed: int = 0, level: bool = False) -> np.ndarray:
+    """Rotations ``(S, 3, 3)`` whose Y column is ``axis (S, 3)`` (unit) and a random roll about it
+    (``level``: none, X kept horizontal — a frond's leaflets spread level)."""
     rng = np.random.default_rng(seed + 1)
     y = axis / np.linalg.norm(axis, axis=1, keepdims=True)
     ref = np.where(np.abs(y[:, 2:3]) < 0.9, [0.0, 0.0, 1.0], [1.0, 0.0, 0.0])
     x = np.cross(y, ref)
     x /= np.linalg.norm(x, axis=1, keepdims=True)
     z = np.cross(x, y)
-    a = rng.uniform(0, 2 * np.pi, len(y))[:, None]
+    a = rng.uniform(0, 2 * np.pi, len(y))[:, None] * (0.0 if level else 1.0)
     x, z = np.cos(a) * x + np.sin(a) * z, -np.sin(a) * x + np.cos(a) * z
     return np.stack([x, y, z], axis=2)
 
@@ -156,8 +201,8 @@ def leaf_mesh(leaves) -> dict:
     """Rest-pose geometry of all clusters (the template instanced at every cluster):
     ``co (S·4C, 3)`` metres, ``uv (S·4C, 2)``, ``cluster (S·4C,)`` owning cluster per vertex,
     ``colour (S·4C, 3)`` sRGB (the cluster's video colour, ±10 % per card), ``quads`` = S·C."""
-    tco, tuv = cluster_template(leaves.cards, leaves.radius, leaves.leaf_size, leaves.seed)
-    R = axis_frames(leaves.axis.astype(np.float64), leaves.seed)
+    tco, tuv = template(leaves.shape, leaves.cards, leaves.radius, leaves.leaf_size, leaves.seed)
+    R = axis_frames(leaves.axis.astype(np.float64), leaves.seed, leaves.shape == "frond")
     co = leaves.pos[:, None].astype(np.float64) + np.einsum("sij,vj->svi", R, tco) * leaves.scales()[:, None, None]
     S, V = co.shape[:2]
     rng = np.random.default_rng(leaves.seed + 2)

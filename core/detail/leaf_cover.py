@@ -14,7 +14,7 @@ import cv2
 import numpy as np
 
 from ..tree3d import plane_to_image
-from .leaf_clusters import axis_frames, cluster_template
+from .leaf_clusters import axis_frames, template
 
 #: a card's blade inside its quad, in the card's (u across, v along) coordinates: stem, widest
 #: at 30–70 %, tip (the procedural leaf of the materials; a user's leaf image is similar)
@@ -23,21 +23,22 @@ BLADE_UV = np.array([[0.5, 0.0], [0.1, 0.3], [0.1, 0.7], [0.5, 1.0], [0.9, 0.7],
 
 def card_footprint(shape: tuple[int, int], pos: np.ndarray, axis: np.ndarray, size: np.ndarray,
                    radius: float, leaf_size: float, cards: int, seed: int, base_px: np.ndarray,
-                   scale: float) -> np.ndarray:
+                   scale: float, kind: str = "cluster") -> np.ndarray:
     """``(H, W)`` bool: where the leaf blades of clusters at ``pos (S, 3)`` metres (the lift's
     plane frame: x right, y depth, z up), main ``axis (S, 3)``, relative ``size (S,)``, cover
     frame 1 (``base_px`` the trunk base in px, ``scale`` metres per px), with the cluster
-    template of :func:`.leaf_clusters.leaf_mesh` (``cards``, ``radius``, ``leaf_size``, ``seed``)."""
+    template of :func:`.leaf_clusters.leaf_mesh` (``cards``, ``radius``, ``leaf_size``, ``seed``,
+    ``kind`` the clusters' shape)."""
     out = np.zeros(shape, np.uint8)
     if len(pos) == 0:
         return out.astype(bool)
-    tco, _ = cluster_template(cards, radius, leaf_size, seed)
+    tco, _ = template(kind, cards, radius, leaf_size, seed)
     quad = tco.reshape(-1, 4, 3)                                      # (C, 4, 3): stem L, R, tip R, L
     u, v = BLADE_UV[:, 0][:, None], BLADE_UV[:, 1][:, None]
     # bilinear in the quad: (1-v)·((1-u)·c0 + u·c1) + v·((1-u)·c3 + u·c2)
     blade = ((1 - v) * (1 - u))[None] * quad[:, None, 0] + ((1 - v) * u)[None] * quad[:, None, 1] \
         + (v * u)[None] * quad[:, None, 2] + (v * (1 - u))[None] * quad[:, None, 3]   # (C, 6, 3)
-    R = axis_frames(np.asarray(axis, np.float64), seed)                               # (S, 3, 3)
+    R = axis_frames(np.asarray(axis, np.float64), seed, kind == "frond")              # (S, 3, 3)
     world = np.asarray(pos, np.float64)[:, None, None] + np.einsum(
         "sij,cvj->scvi", R, blade) * np.asarray(size, np.float64)[:, None, None, None]
     px = plane_to_image(world / scale, np.asarray(base_px, np.float64))              # (S, C, 6, 2)
