@@ -347,8 +347,9 @@ def test_generated_trees_sway_as_far_as_their_source(model):
     """At wind 1 a generated tree's nodes sway as far (share of the height) as the source's did,
     whatever the spectra's per-bone amplitudes add up to along its chains; a species fitted before
     the excursion was measured (None) is left as sampled. A tree grows to fill its envelope, so the
-    containment may still scale its sway down a little (``sway_scale``, 0.97 for one seed under bpy
-    5.3's OpenCV): the excursion is then that share of the source's."""
+    containment may still scale its sway down a little (``sway_scale``; since it is contained in 3D
+    with at most 2 % of the nodes out in any frame, 0.875 for seed 0 under bpy 5.3's OpenCV): the
+    excursion is then that share of the source's."""
     src = source_tree("broad")
     assert model.sway_excursion == pytest.approx(
         species.sway_excursion(src.nodes3d.astype(float), float(np.ptp(src.nodes3d[0, :, 2]))))
@@ -356,7 +357,7 @@ def test_generated_trees_sway_as_far_as_their_source(model):
     for seed in (0, 1, 2):
         t = growth.grow_tree(model, env, growth.GrowParams(seed=seed, n_frames=60, leaf_density=0))
         k = t.meta["sway_scale"]
-        assert 0.9 <= k <= 1.0
+        assert 0.8 <= k <= 1.0, k
         X = t.nodes3d.astype(float)
         got = species.sway_excursion(X, float(X[0, :, 2].max()))
         print(f"seed {seed}: excursion {got:.4f} of the height, source {model.sway_excursion:.4f}, containment {k:.3f}")

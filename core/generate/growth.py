@@ -395,14 +395,14 @@ def match_excursion(parents: np.ndarray, rest: np.ndarray, rot: np.ndarray, targ
     return factor
 
 
-def contain_sway(parents: np.ndarray, rest: np.ndarray, rot: np.ndarray, region: Region2D,
-                 env: Envelope | None = None) -> tuple[np.ndarray, float]:
+def contain_sway(parents: np.ndarray, rest: np.ndarray, rot: np.ndarray, region: Region2D) -> tuple[np.ndarray, float]:
     """Forward kinematics of the sway ``rot (F, N, 3)`` about ``rest (N, 3)`` metres, with the
     rotations scaled down by one factor for the tree (bisection, 6 steps) where the sway would carry
     more than :data:`SWAY_OUTSIDE` of the node-frames (or :data:`SWAY_OUTSIDE_FRAME` of the nodes in
-    one frame) more than :data:`SWAY_SLACK` of the height outside
-    the envelope ``region`` (x, z), or with ``env`` (metres) outside Ω itself in 3D (swaying in
-    depth too) — the species' own sway fits the artist's silhouette (the wind
+    one frame) more than :data:`SWAY_SLACK` of the height outside the envelope ``region`` (x, z:
+    the picture plane, where the artist drew it; in depth Ω is only a surface of revolution of that
+    drawing, and holding the sway to it took a quarter of a species' sway) — the species' own sway
+    fits the artist's silhouette (the wind
     strength scales it on top). Returns ``(nodes3d (F, N, 3), factor)``; the factor is 1 for a sway
     that stays inside."""
     import cv2
@@ -412,8 +412,7 @@ def contain_sway(parents: np.ndarray, rest: np.ndarray, rot: np.ndarray, region:
     near = cv2.dilate(region.full.astype(np.uint8), disk).astype(bool)
 
     def inside(p: np.ndarray) -> np.ndarray:
-        ok = region.sample(near, p[..., [0, 2]])
-        return ok if env is None else ok & env.contains(p, tol=SWAY_SLACK * H)
+        return region.sample(near, p[..., [0, 2]])
 
     start = inside(rest)
 
@@ -505,7 +504,7 @@ def grow_tree(model: SpeciesModel, envelope: Envelope, params: GrowParams | None
     # the species' own sway (wind 1) sways as far as its source did and stays inside the envelope;
     # the wind then scales it (×2 is ×2)
     rot = rot * match_excursion(g.parents, rest, rot, model.sway_excursion)
-    unit, sway_scale = contain_sway(g.parents, rest, rot, region, env)
+    unit, sway_scale = contain_sway(g.parents, rest, rot, region)
     if np.all(gains == 1.0):
         nodes3d = unit
     else:

@@ -58,7 +58,7 @@ def grow_palm(info: dict, env: Envelope, rng: np.random.Generator,
               trunk_bones: int = 10) -> tuple[np.ndarray, np.ndarray]:
     """A new palm's ``(parents (N,), rest (N, 3))`` metres, base at the origin, inside ``env``
     (metres): ``info`` of :func:`palm_info`. Fronds: ``info["fronds"]`` (±1), each
-    ``frond_frac`` of the height long (±10 %), at even azimuths (jittered), rising at
+    ``frond_frac`` of the tree's height long along its bones (±10 %), at even azimuths (jittered), rising at
     :data:`FROND_RISE` and drooping so the tip is seen at ``tip_deg`` from the top:
     ``p(s) = T + L (s cos e u + (s sin e − κ s²) z)``, ``κ = sin e − sin(tip)``. The trunk follows
     Ω's axis up to ``T`` at ``top_frac`` of Ω's height (at most its top less the fronds' rise);
@@ -66,16 +66,21 @@ def grow_palm(info: dict, env: Envelope, rng: np.random.Generator,
     shortened (by 10 % steps) until every point is inside."""
     H = float(np.max(env.z))
     n_f = max(3, int(info["fronds"]) + int(rng.integers(-1, 2)))
-    L = float(info["frond_frac"]) * H * rng.uniform(0.9, 1.1)
     tip = math.radians(float(np.clip(info["tip_deg"], -80.0, 30.0)))
     e = FROND_RISE
     kappa = max(math.sin(e) - math.sin(tip), 1e-3)
     s_peak = min(1.0, math.sin(e) / (2 * kappa))
+    unit = np.vstack([np.zeros(3), _frond(np.zeros(3), 1.0, e, kappa, 0.0)])
+    arc = float(np.linalg.norm(np.diff(unit, axis=0), axis=1).sum())          # frond length per unit L
+    rise1 = max(s_peak * math.sin(e) - kappa * s_peak ** 2, 0.0)               # rise above T per unit L
+    # frond_frac is a length along the frond as a share of the tree's own height, T + the rise
+    top = float(info.get("top_frac", 1.0)) * H
+    f = float(info["frond_frac"]) * rng.uniform(0.9, 1.1)
+    L = f * top / max(arc - f * rise1, 1e-3)
     az0 = rng.uniform(0, 2 * np.pi)
     azimuths = az0 + 2 * np.pi * np.arange(n_f) / n_f + rng.normal(scale=0.15, size=n_f)
     for _ in range(30):
-        rise = max(L * (s_peak * math.sin(e) - kappa * s_peak ** 2), 0.0)
-        top_z = min(float(info.get("top_frac", 1.0)) * H, H - rise)
+        top_z = min(top, H - L * rise1)
         z = np.linspace(0.0, top_z, trunk_bones + 1)
         c, _ = env.at(z)
         trunk = np.stack([c, np.zeros_like(z), z], 1)
