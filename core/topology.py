@@ -95,12 +95,18 @@ def branching_level(parents: np.ndarray) -> np.ndarray:
     return level
 
 
+def trunk_chain(parents: np.ndarray) -> np.ndarray:
+    """``(K,)`` node indices from the root (0) along its single-child successors to the first
+    fork (inclusive), or to the last node of a tree without one: a tree's trunk."""
+    parents = np.asarray(parents)
+    kids = children_lists(parents)
+    chain = [0]
+    while len(kids[chain[-1]]) == 1:
+        chain.append(kids[chain[-1]][0])
+    return np.asarray(chain, np.int64)
+
+
 def trunk_top(parents: np.ndarray) -> int:
     """The node where the single chain from the root ends (its first fork, or the last node of a
     tree without one): a palm's crown top."""
-    parents = np.asarray(parents)
-    kids = np.bincount(parents[parents >= 0], minlength=len(parents))
-    n = 0
-    while kids[n] == 1:
-        n = int(np.flatnonzero(parents == n)[0])
-    return n
+    return int(trunk_chain(parents)[-1])

@@ -22,6 +22,14 @@ def true_labels(variant: str, seed: int | None = None, frames: int | None = None
     return lab
 
 
+def dist_to_polyline(p: np.ndarray, poly: np.ndarray) -> np.ndarray:
+    """``(P,)`` distance of every point of ``p (P, 2)`` to the polyline ``poly (K, 2)`` (px)."""
+    a, b = poly[:-1], poly[1:]
+    ab = b - a
+    t = np.clip(((p[:, None] - a[None]) * ab[None]).sum(-1) / np.maximum((ab ** 2).sum(-1), 1e-9), 0, 1)
+    return np.linalg.norm(p[:, None] - (a[None] + t[..., None] * ab[None]), axis=-1).min(1)
+
+
 def sample_edges(nodes: np.ndarray, parents: np.ndarray, step: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
     """Points every ``step`` px along every (parent, child) edge of ``nodes (N, 2)``; also their weights (px)."""
     c = np.flatnonzero(parents >= 0)

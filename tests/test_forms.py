@@ -9,8 +9,9 @@ import report
 from tree_from_video import cli
 from tree_from_video.core import pipeline
 from tree_from_video.core.reconstruct.form import detect_form
-from tree_from_video.core.topology import topological_order
+from tree_from_video.core.topology import topological_order, trunk_chain
 
+from groundtruth import dist_to_polyline
 from samples import generate, load_truth, plain_settings, video_path
 
 #: the issue's bar for a conifer's leader: within 2 % of the height of the true one, or 2.5 px
@@ -25,13 +26,6 @@ PALM_TOP_BAR = 0.03
 #: frond count: the issue asks ±2; the silhouette shows overlapping fronds as one (measured on
 #: held-out seeds 2 and 3: 10 of 14 and 8 of 9), so the test holds the count to ±4
 FROND_TOL = 4
-
-
-def _dist_to_polyline(p: np.ndarray, poly: np.ndarray) -> np.ndarray:
-    a, b = poly[:-1], poly[1:]
-    ab = b - a
-    t = np.clip(((p[:, None] - a[None]) * ab[None]).sum(-1) / np.maximum((ab ** 2).sum(-1), 1e-9), 0, 1)
-    return np.linalg.norm(p[:, None] - (a[None] + t[..., None] * ab[None]), axis=-1).min(1)
 
 
 def _leader(parents: np.ndarray, pos: np.ndarray) -> np.ndarray:
@@ -88,8 +82,8 @@ def test_conifer_leader_on_held_out_clips(tmp_path):
         sk = res.skeleton
         ours = sk.nodes2d[0][_leader(sk.parents, sk.nodes2d[0])].astype(float)
         inside = ours[ours[:, 1] >= true_leader[-1, 1]]       # up to the true leader's top (needles above it)
-        there = float(_dist_to_polyline(inside, true_leader).max() / H)
-        back = float(_dist_to_polyline(true_leader, ours).max() / H)
+        there = float(dist_to_polyline(inside, true_leader).max() / H)
+        back = float(dist_to_polyline(true_leader, ours).max() / H)
         lines.append(f"{variant:<15}{seed:>5}  {res.form:<10} {there:12.3f}  {back:12.3f}")
         results.append((variant, res.form, res.form_why, max(there, back), max(LEADER_BAR, LEADER_PX / H)))
     report.add("Conifer leader, held-out clips (tests/test_forms.py)", lines)
@@ -123,9 +117,7 @@ def test_palm_is_a_trunk_with_fronds_from_its_top(tmp_path):
         sk = res.skeleton
         par, pos = sk.parents, sk.nodes2d[0].astype(float)
         kids = np.bincount(par[par >= 0], minlength=len(par))
-        chain = [0]
-        while kids[chain[-1]] == 1:
-            chain.append(int(np.flatnonzero(par == chain[-1])[0]))
+        chain = trunk_chain(par).tolist()
         t = chain[-1]
         err = float(np.linalg.norm(pos[t] - tn[top]) / H)
         tips = int(np.sum(kids == 0))
@@ -157,7 +149,6 @@ def test_a_palm_species_grows_palms(tmp_path):
     from tree_from_video.core.envelope import envelope_from_meta
     from tree_from_video.core.generate import envelopes, growth, species
     from tree_from_video.core.generate.palm import palm_info
-    from tree_from_video.core.topology import trunk_top
     folder = generate("palm", str(tmp_path / "palm"), seed=0, frames=48)        # a dev seed: the generator's test
     s = plain_settings(frames="0:48", form="palm")
     tree = pipeline.build_3d(pipeline.run(video_path(folder), f"{folder}/outline.json", s), s)
@@ -178,7 +169,7 @@ def test_a_palm_species_grows_palms(tmp_path):
             poly = envelopes.envelope_polygon(env).astype(np.float32).reshape(-1, 1, 2)
             swaying = min(np.mean([cv2.pointPolygonTest(poly, (float(x), float(z)), True) >= -growth.SWAY_SLACK * H
                                    for x, _, z in f[1:]]) for f in g.nodes3d[::4].astype(float))
-            t = trunk_top(g.parents)
+            t = int(trunk_chain(g.parents)[-1])
             lines.append(f"{name} seed {seed}: {info['fronds']} fronds, length {info['frond_frac']:.3f}, tips at "
                          f"{info['tip_deg']:.1f} deg, {inside:.0%} inside at rest, {swaying:.0%} in the worst frame, "
                          f"sway x{g.meta['sway_scale']:.2f}")
@@ -188,11 +179,7 @@ def test_a_palm_species_grows_palms(tmp_path):
             assert abs(info["fronds"] - model.palm["fronds"]) <= 1, lines[-1]
             assert info["frond_frac"] == pytest.approx(model.palm["frond_frac"], rel=0.15), lines[-1]
             assert np.ptp(g.nodes3d[:, -1], axis=0).max() > 0                   # a frond tip sways
-            on_trunk = set()
-            n = t
-            while n >= 0:
-                on_trunk.add(n)
-                n = int(g.parents[n])
+            on_trunk = set(trunk_chain(g.parents).tolist())
             assert g.leaves is not None and not set(g.leaves.node.tolist()) & on_trunk
     report.add("Palm species and generated palms (tests/test_forms.py)", lines)
 

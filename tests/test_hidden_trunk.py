@@ -10,7 +10,9 @@ import report
 from tree_from_video.core import pipeline
 from tree_from_video.core.reconstruct.stems import hidden_trunk
 from tree_from_video.core.reconstruct.trace import TraceParams
+from tree_from_video.core.topology import trunk_chain
 
+from groundtruth import dist_to_polyline
 from samples import generate, load_truth, plain_settings, video_path
 
 #: the trunk's nodes from the issue: within 3 % of the height of the true trunk. Met in height
@@ -19,22 +21,6 @@ from samples import generate, load_truth, plain_settings, video_path
 TRUNK_X_BAR = 0.08
 BASE_BAR = 0.03
 FORK_BAR = 0.10
-
-
-def _trunk_chain(parents: np.ndarray) -> np.ndarray:
-    """Node 0 and its single-child successors up to the first fork (inclusive)."""
-    kids = np.bincount(parents[parents >= 0], minlength=len(parents))
-    chain = [0]
-    while kids[chain[-1]] == 1:
-        chain.append(int(np.flatnonzero(parents == chain[-1])[0]))
-    return np.array(chain)
-
-
-def _dist_to_polyline(p: np.ndarray, poly: np.ndarray) -> np.ndarray:
-    a, b = poly[:-1], poly[1:]
-    ab = b - a
-    t = np.clip(((p[:, None] - a[None]) * ab[None]).sum(-1) / np.maximum((ab ** 2).sum(-1), 1e-9), 0, 1)
-    return np.linalg.norm(p[:, None] - (a[None] + t[..., None] * ab[None]), axis=-1).min(1)
 
 
 def test_hidden_trunk_detection_by_hand():
@@ -69,12 +55,12 @@ def test_a_hidden_trunk_rises_from_the_ground_to_where_the_limbs_meet(tmp_path):
         assert sk.hidden_trunk and any("trunk is hidden" in w for w in res.warnings)
         H = float(truth["height_px"])
         tn, tp = truth["nodes2d"][0], truth["parents"]
-        true_trunk = tn[_trunk_chain(tp)]
-        chain = _trunk_chain(sk.parents)
+        true_trunk = tn[trunk_chain(tp)]
+        chain = trunk_chain(sk.parents)
         pos = sk.nodes2d[0][chain].astype(float)
         base_err = abs(pos[0, 1] - tn[0, 1]) / H
         fork_err = abs(pos[-1, 1] - true_trunk[-1, 1]) / H
-        dist = float(_dist_to_polyline(pos, true_trunk).max() / H)
+        dist = float(dist_to_polyline(pos, true_trunk).max() / H)
         lines.append(f"{seed:<6}{base_err:9.3f}{fork_err:9.3f}{dist:11.3f}{len(chain):6d}")
         assert len(chain) >= 4 and np.ptp(pos[:, 0]) <= 1.0, lines[-1]        # one vertical chain
         assert base_err <= BASE_BAR and fork_err <= FORK_BAR and dist <= TRUNK_X_BAR, lines[-1]

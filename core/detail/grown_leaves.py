@@ -9,7 +9,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..envelope import Envelope
-from ..topology import trunk_top
+from ..topology import trunk_chain
 from .leaf_clusters import BARK_RADIUS_SHARE, LeafParams, as_fronds, make_clusters
 from .leaf_cover import card_footprint, uncovered_sites
 
@@ -87,12 +87,8 @@ def grow_leaves(tree, info: dict, density: float = 1.0, seed: int = 0, params: L
     r = np.asarray(tree.radius, np.float64)
     thin = np.flatnonzero((r < BARK_RADIUS_SHARE * r.max()) & (np.arange(tree.n_nodes) > 0))
     if tree.meta.get("form") == "palm":                     # a palm's leaflets: along its fronds
-        top = trunk_top(tree.parents)
         chain = np.zeros(tree.n_nodes, bool)
-        n = top
-        while n >= 0:
-            chain[n] = True
-            n = int(tree.parents[n])
+        chain[trunk_chain(tree.parents)] = True
         thin = np.flatnonzero(~chain)
     if len(thin) == 0 or density <= 0:
         return None
