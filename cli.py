@@ -80,6 +80,12 @@ def build_parser() -> argparse.ArgumentParser:
                         "broadleaf), broadleaf, conifer (a leader to the top with whorls, kept straight in the lift) "
                         "or palm (a trunk with a crown of fronds from its top)")
     p.add_argument("--conifer", action="store_true", help="the same as --form conifer")
+    p.add_argument("--limbs", choices=spec(S, "limbs").choices, default=_default(S, "limbs"),
+                   help="the crown's limbs: auto (default: traced, or grown from a species where no bark shows "
+                        "in the crown), trace, or grow (a species' growth inside frame 1's tree pixels)")
+    p.add_argument("--limb-species", default=S().limb_species, metavar="NAME|FILE.json",
+                   help="the species grown for --limbs (a library name or a species file; default: the library's "
+                        "species of the tree's form)")
     p.add_argument("--solver", choices=spec(MotionParams, "solver").choices, default=_default(MotionParams, "solver"),
                    help="3D motion solver (default probabilistic, paper §4; deterministic: sphere/line-of-sight "
                         "baseline)")
@@ -288,7 +294,8 @@ def settings_from_args(args) -> pipeline.Settings:
                         height_m=args.height, form="conifer" if args.conifer else args.form, solver=args.solver, twigs=args.twigs,
                         fit_branches=not args.no_branch_fit, curliness=args.curliness, bark=args.bark,
                         leaves=not args.no_leaves, leaf_density=args.leaf_density, leaf_cards=args.leaf_cards,
-                        flutter_hz=args.flutter_hz, leaf_colour=args.leaf_colour)
+                        flutter_hz=args.flutter_hz, leaf_colour=args.leaf_colour, limbs=args.limbs,
+                        limb_species=args.limb_species)
 
 
 def _reconstruct(args, gen) -> int:

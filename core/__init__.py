@@ -8,14 +8,16 @@ detail/       a ``Tree3D`` → the same tree with twigs copied from its forks, l
               frame 1's seeds filling its foreground (``LeafClusters``), leaf and bark colour as
               albedo, and its branch mesh (tubes, bark, curl).
 generate/     reconstructed ``Tree3D``s → a species (``SpeciesModel``: Dirichlets of shape and
-              motion) → new ``Tree3D``s grown in any envelope, swaying by wind or audio; forests.
+              motion) → new ``Tree3D``s grown in any envelope, swaying by wind or audio; forests;
+              and a crown's limbs grown where the video shows none (``limbs``).
 
 Shared by every stage, at this level: the tree model (``tree3d``: ``Tree3D``, ``LeafClusters``,
 and its ``meta`` keys in ``meta``), its bones (``bones``), topology helpers (``topology``),
 rotations (``rotations``), the envelope Ω (``envelope``), the outline (``outline``), file I/O
 (``fileio``: atomic npz/JSON), the product's defaults and ranges (``params``), errors, progress
 and background jobs. ``pipeline`` strings the stages end to end: ``run`` (the 2D stages) and
-``build_3d`` (3D lift, motion, branch widths, twigs, leaves).
+``build_3d`` (3D lift, motion, branch widths, twigs, leaves); between them ``with_limbs`` grows
+the limbs of a crown that shows no bark.
 
 Imports point one way: ``reconstruct`` never imports ``detail`` or ``generate``; ``detail`` may
 use ``reconstruct``; ``generate`` may use both; the shared modules import no stage

@@ -18,6 +18,7 @@ from .detail.leaf_seeds import place_leaves
 from .detail.twigs import TwigParams, add_twigs, check_twig_params
 from .envelope import envelope_to_meta
 from .errors import InputError
+from .generate.limbs import LIMB_SOURCES, grown_limbs, limb_species
 from .meta import TreeMeta
 from .params import param, same_as
 from .progress import ProgressFn, expected_seconds, stage_split
@@ -40,7 +41,7 @@ from .reconstruct.video import open_video, parse_frame_range
 from .tree3d import Tree3D, image_to_plane, pipe_radii, uneven_times
 
 __all__ = ["SKELETON_KINDS", "STAGE_COSTS_3D", "Result", "Settings", "add_leaves", "build_3d", "check_settings",
-           "clip_frames", "first_frame", "run", "share_2d", "track_video"]
+           "clip_frames", "first_frame", "run", "share_2d", "track_video", "with_limbs"]
 
 #: Seconds a 3D stage takes ≈ fixed + per frame × frames ``(fixed s, s per frame)``, measured like
 #: :data:`.reconstruct.run.STAGE_COSTS_2D` (sample_videos/broad and sparse, 12–180 frames, wheel and
@@ -67,6 +68,9 @@ class Settings(ReconstructSettings):
     bark: str = same_as(MeshParams, "bark")               # branch mesh (recorded in meta["mesh"])
     leaves: LeafParams | None = field(default_factory=LeafParams)   # None: bare branches
     fit_branches: bool = True       # branch widths and centre lines measured in frame 1 (branch_fit)
+    # the crown's limbs: traced, or grown from a species where the video shows no bark (generate.limbs)
+    limbs: str = param("auto", choices=LIMB_SOURCES, what="limbs")
+    limb_species: str = ""          # the species grown (library name or .json file; "": the form's own)
 
 
 def check_settings(s: Settings) -> None:
@@ -78,6 +82,8 @@ def check_settings(s: Settings) -> None:
     check_params(MeshParams(curliness=s.curliness, bark=s.bark))
     if s.leaves is not None:
         check_leaf_params(s.leaves)
+    if s.limb_species and s.limbs != "trace":
+        limb_species(s.limb_species, "broadleaf")         # a missing or broken species file fails now
 
 
 def run(video: str, outline_path, settings: Settings | None = None,
@@ -87,7 +93,20 @@ def run(video: str, outline_path, settings: Settings | None = None,
     tracking). Raises InputError on bad input."""
     s = settings or Settings()
     check_settings(s)
-    return run_2d(video, outline_path, s, progress)
+    return with_limbs(run_2d(video, outline_path, s, progress), s)
+
+
+def with_limbs(res: Result, s: Settings) -> Result:
+    """``res`` with its crown's limbs grown from a species (:func:`.generate.limbs.grown_limbs`)
+    when ``s.limbs`` is "grow", or "auto" and the trace saw no bark in the crown; palms keep
+    their traced fronds and the paper's skeleton its own."""
+    sk = res.skeleton
+    if s.limbs == "trace" or (s.limbs == "auto" and sk.limbs_seen) or sk.kind != "traced":
+        return res
+    if res.form == "palm":
+        note = "a palm's crown is fronds: they are traced, not grown"
+        return replace(res, skeleton=replace(sk, warnings=[*sk.warnings, note]))
+    return replace(res, skeleton=grown_limbs(res, limb_species(s.limb_species, res.form), int(s.twigs.seed)))
 
 
 def clip_frames(video: str, settings: Settings | None = None) -> int:
@@ -120,6 +139,8 @@ def build_3d(res: Result, s: Settings | None = None, name: str = "Tree",
         tmap = tree_map(frame, res.outline.mask)
         if tmap is not None and s.fit_branches:
             fit = measure_branches(sk.parents, sk.nodes2d[0], tmap)
+            if sk.kind == "grown":            # the frame shows the trunk, not limbs grown behind the leaves
+                fit = replace(fit, width_px=np.where(sk.level == 0, fit.width_px, np.nan))
             vf = fit_to_video(sk.parents, sk.level, sk.nodes2d[0], fit, s.pipe_exponent)
             radius_px = vf.radius_px
             if radius_px is not None:               # onto the branches' centre lines, every frame

@@ -43,6 +43,9 @@ def settings_from(props) -> pipeline.Settings:
                           frames=f"{props.frame_start}:{props.frame_end}" if props.use_frame_range else None,
                           height_m=props.height_m, cache_dir=cache_dir())
     s.form = "conifer" if props.conifer and props.form == "auto" else props.form
+    s.limbs = props.limbs
+    spec = props.limb_species.strip()
+    s.limb_species = bpy.path.abspath(spec) if spec.lower().endswith(".json") else spec
     s.lift.candidates = props.candidates
     s.motion.solver = props.solver
     s.motion.sigma_track = props.sigma_track

@@ -91,13 +91,15 @@ def _bad_inputs(tmp):
         "bad frames": ([VIDEO, "--outline", OUTLINE, "--frames", "5"], "frame range"),
         "bad levels": ([VIDEO, "--outline", OUTLINE, "--levels", "1"], "levels"),
         "bad scale": ([VIDEO, "--outline", OUTLINE, "--scale", "0"], "scale"),
+        "unknown limb species": ([VIDEO, "--outline", OUTLINE, "--limbs", "grow", "--limb-species", "oak"], "species"),
     }
 
 
 BAD_CASES = [
     "missing video", "unreadable video", "zero-frame video", "missing outline", "outline not json",
     "outline empty", "outline degenerate", "outline outside", "outline mask blank", "out is a file",
-    "out cannot be created", "generate out cannot be created", "unknown option", "bad frames", "bad levels", "bad scale"]
+    "out cannot be created", "generate out cannot be created", "unknown option", "bad frames", "bad levels", "bad scale",
+    "unknown limb species"]
 
 
 @pytest.mark.parametrize("case", BAD_CASES)

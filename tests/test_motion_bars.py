@@ -27,7 +27,9 @@ VARIANTS = ("flutter", "gusts", "flicker", "foreground", "conifer_storm", "palm"
 
 #: (variant, measure) -> (measured when recorded, floor the test holds it to); see the docstring
 GAPS = {
-    ("flicker", "tip_corr"): (0.89, 0.84),
+    # 0.89 on the machine that recorded it, 0.907 on another with the same code and pins (the
+    # same commit measured on both): it sits at the bar, so the gap stays until it clears it
+    ("flicker", "tip_corr"): (0.90, 0.84),
     ("vfr", "confident"): (0.88, 0.75),
     ("foreground", "tip_corr"): (0.54, 0.45),                  # the branch in front is followed
     ("foreground", "confident"): (0.75, 0.65),

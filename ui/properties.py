@@ -26,6 +26,7 @@ CORE_FIELDS = {
     "levels": (ReconstructSettings, "levels"),
     "skeleton_kind": (ReconstructSettings, "skeleton"),
     "form": (ReconstructSettings, "form"),
+    "limbs": (Settings, "limbs"),
     "fold_alpha": (ReconstructSettings, "fold_alpha"),
     "solver": (MotionParams, "solver"),
     "height_m": (Settings, "height_m"),
@@ -116,6 +117,17 @@ class TreeVideoSettings(bpy.types.PropertyGroup):
                                       "in the 3D lift"),
                ("palm", "Palm", "One trunk, curved as traced, with a crown of fronds from its top")],
         description="The tree's form: how its branches are traced and lifted, and how trees of its species grow")
+    limbs: bpy.props.EnumProperty(
+        name="Limbs", **_core("limbs"),
+        items=[("auto", "Auto", "Traced in the video; grown from a species where no bark shows in the crown"),
+               ("trace", "Trace", "Always traced in the video (where no bark shows: following how the crown moves)"),
+               ("grow", "Grow", "Grown from a species inside frame 1's tree pixels: for a dense crown whose traced "
+                                "limbs look like a web")],
+        description="Where the crown's limbs come from; the trunk is always traced")
+    limb_species: bpy.props.StringProperty(
+        name="Limb Species", default="",
+        description="Species grown for the limbs: a library name (broad, conifer, sparse) or a species .json file; "
+                    "empty: the library species of the tree's form")
     conifer: bpy.props.BoolProperty(name="Conifer Trunk", default=False,
                                     description="Older files and presets: the same as Form › Conifer")
     candidates: bpy.props.IntProperty(name="Depth Samples", default=_L.candidates, min=4, max=256,

@@ -146,7 +146,7 @@ def _seg_dist(pts: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.sqrt(np.sum(d * d, -1))
 
 
-def _stem_top(region: Region2D) -> float:
+def stem_top(region: Region2D) -> float:
     """Lowest height where Ω' is at least 30 % of its widest."""
     H = region.height()
     z = np.linspace(0.0, H, 200)
@@ -177,7 +177,7 @@ def grow_2d(model: SpeciesModel, region: Region2D, p: GrowParams, rng: np.random
         return int(np.clip(round(length / seg_len), 1, 8))
 
     # trunk: straight up to the first bifurcation, at least where Ω' widens
-    zt = min(max(model.trunk_frac * H, _stem_top(region) + 0.02 * H), 0.6 * H)
+    zt = min(max(model.trunk_frac * H, stem_top(region) + 0.02 * H), 0.6 * H)
     while zt > 0.05 * H and not region.contains(np.array([[0.0, zt]]))[0]:
         zt *= 0.9
     if not region.contains(np.array([[0.0, 0.5 * zt]]))[0]:

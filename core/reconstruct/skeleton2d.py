@@ -37,7 +37,9 @@ class Skeleton2D:
     +1 after every bifurcation); ``fps`` frames per second; ``kind`` "traced" or "paper";
     ``confidence (F, N)`` float32 motion confidence in [0, 1) (:mod:`.node_motion`; None: not
     measured); ``times (F,)`` seconds from the first frame (None: ``index / fps``);
-    ``hidden_trunk`` the crown hides the trunk (it was drawn, not traced: its pixels are foliage).
+    ``hidden_trunk`` the crown hides the trunk (it was drawn, not traced: its pixels are foliage);
+    ``limbs_seen`` the trace found bark in the crown (False: its limbs follow the motion hierarchy,
+    a guess the pipeline may replace by grown ones, ``kind`` "grown": :mod:`..generate.limbs`).
     """
 
     parents: np.ndarray
@@ -49,6 +51,7 @@ class Skeleton2D:
     confidence: np.ndarray | None = None
     times: np.ndarray | None = None
     hidden_trunk: bool = False
+    limbs_seen: bool = True
 
     @property
     def n_nodes(self) -> int:

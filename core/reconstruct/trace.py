@@ -413,16 +413,17 @@ def _trace_paths(params: TraceParams, mask: np.ndarray, rn: np.ndarray, ridge: n
                  sky: np.ndarray, background: np.ndarray | None, hier: Hierarchy, p0: np.ndarray,
                  twigs: np.ndarray, base: tuple[int, int], size: float,
                  progress: ProgressFn | None, trunk_top: int | None = None,
-                 leader: tuple[int, int] | None = None) -> tuple[np.ndarray, np.ndarray]:
+                 leader: tuple[int, int] | None = None, cost: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Steps 3–5 of the module docstring on working-resolution maps; returns (parents, pos px).
     ``trunk_top``: row of a hidden trunk's top (:func:`hidden_trunk`); the paths then all rise
     from the base up the column above it to that row (walls on both sides), so the crown
     branches from the trunk's top, foliage below it hanging from the limbs. ``leader`` (x, y):
     a conifer's top; a straight leader from the base to it costs less than any crest, so every
-    branch climbs it and leaves it about level (whorls), and the top is a target."""
+    branch climbs it and leaves it about level (whorls), and the top is a target. ``cost``: the
+    :func:`trace_cost` map when already made (it is not changed)."""
     h, w = mask.shape
     bx, by = base
-    cost = trace_cost(params, mask, rn, ridge, sky, background)
+    cost = trace_cost(params, mask, rn, ridge, sky, background) if cost is None else cost.copy()
     graph_mask = mask
     if trunk_top is not None and trunk_top < by:
         graph_mask = mask.copy()
@@ -518,9 +519,10 @@ def traced_skeleton(tracks: Tracks, hier: Hierarchy, outline: Outline, maps: App
     p0 = tracks.points[0] * f
     twigs, owner = foliage_targets(hier, p0, max(params.twig_tracks, len(hier.members[0]) // params.max_twigs))
     report(progress, "skeleton", 0.2)
-    palm = None
+    palm = cost = None
     if form == "palm" and hidden is None:
-        palm = _palm(params, mask, tree, trace_cost(params, mask, rn, ridge, sky, background), (bx, by), size)
+        cost = trace_cost(params, mask, rn, ridge, sky, background)
+        palm = _palm(params, mask, tree, cost, (bx, by), size)
         if palm is None:
             warnings.append("no crown of fronds found above a trunk: the palm is traced as a broadleaf")
     if palm is not None:
@@ -528,7 +530,7 @@ def traced_skeleton(tracks: Tracks, hier: Hierarchy, outline: Outline, maps: App
     elif has_evidence:
         tip = leader_tip(tree, bx) if form == "conifer" and hidden is None else None
         parents, pos = _trace_paths(params, mask, rn, ridge, sky, background, hier, p0, twigs, (bx, by),
-                                    size, progress, None if hidden is None else hidden[2], tip)
+                                    size, progress, None if hidden is None else hidden[2], tip, cost)
     else:
         warnings.append("no bark visible between the leaves: the skeleton follows the motion "
                         "hierarchy with a straight trunk")
@@ -542,4 +544,5 @@ def traced_skeleton(tracks: Tracks, hier: Hierarchy, outline: Outline, maps: App
     mo = follow_tracks(pos, tracks, NODE_MOTION_SCALE * crown_scale(outline), fixed)
     report(progress, "skeleton", 1.0)
     return Skeleton2D(parents, mo.nodes, branching_level(parents), tracks.fps, "traced", warnings,
-                      confidence=mo.confidence, times=tracks.times, hidden_trunk=hidden is not None)
+                      confidence=mo.confidence, times=tracks.times, hidden_trunk=hidden is not None,
+                      limbs_seen=palm is not None or has_evidence)

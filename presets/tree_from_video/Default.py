@@ -3,6 +3,7 @@ import bpy
 bpy.context.scene.tree_video.levels = 6
 bpy.context.scene.tree_video.skeleton_kind = 'traced'
 bpy.context.scene.tree_video.form = 'auto'
+bpy.context.scene.tree_video.limbs = 'auto'
 bpy.context.scene.tree_video.candidates = 32
 bpy.context.scene.tree_video.solver = 'probabilistic'
 bpy.context.scene.tree_video.sigma_track = 0.0075
