@@ -169,7 +169,8 @@ def test_a_palm_species_grows_palms(tmp_path):
             poly = envelopes.envelope_polygon(env).astype(np.float32).reshape(-1, 1, 2)
             swaying = min(np.mean([cv2.pointPolygonTest(poly, (float(x), float(z)), True) >= -growth.SWAY_SLACK * H
                                    for x, _, z in f[1:]]) for f in g.nodes3d[::4].astype(float))
-            t = int(trunk_chain(g.parents)[-1])
+            trunk = trunk_chain(g.parents)
+            t = int(trunk[-1])
             lines.append(f"{name} seed {seed}: {info['fronds']} fronds, length {info['frond_frac']:.3f}, tips at "
                          f"{info['tip_deg']:.1f} deg, {inside:.0%} inside at rest, {swaying:.0%} in the worst frame, "
                          f"sway x{g.meta['sway_scale']:.2f}")
@@ -179,7 +180,7 @@ def test_a_palm_species_grows_palms(tmp_path):
             assert abs(info["fronds"] - model.palm["fronds"]) <= 1, lines[-1]
             assert info["frond_frac"] == pytest.approx(model.palm["frond_frac"], rel=0.15), lines[-1]
             assert np.ptp(g.nodes3d[:, -1], axis=0).max() > 0                   # a frond tip sways
-            on_trunk = set(trunk_chain(g.parents).tolist())
+            on_trunk = set(trunk.tolist())
             assert g.leaves is not None and not set(g.leaves.node.tolist()) & on_trunk
     report.add("Palm species and generated palms (tests/test_forms.py)", lines)
 

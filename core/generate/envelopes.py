@@ -126,7 +126,7 @@ def envelope_from_mask(mask: np.ndarray, metres_per_px: float, base_px: np.ndarr
     """A :class:`ShapeEnvelope` from an image-like ``mask (H, W)`` bool (row 0 at the top), scaled
     by ``metres_per_px``. ``base_px (2,)`` (x, y) is the trunk base; by default the middle of the
     mask's lowest row. Only the largest connected part is kept."""
-    mask = _largest_component(np.asarray(mask, bool))
+    mask = largest_component(np.asarray(mask, bool))
     rows = np.flatnonzero(mask.any(1))
     if base_px is None:
         bottom = rows.max()
@@ -140,7 +140,8 @@ def envelope_from_mask(mask: np.ndarray, metres_per_px: float, base_px: np.ndarr
     return ShapeEnvelope(env.z * s, env.centre * s, env.radius * s, poly, name, np.zeros(2))
 
 
-def _largest_component(mask: np.ndarray) -> np.ndarray:
+def largest_component(mask: np.ndarray) -> np.ndarray:
+    """``mask (H, W)`` bool with only its largest 8-connected part (unchanged when it has one)."""
     n, lab, stats, _ = cv2.connectedComponentsWithStats(mask.astype(np.uint8), connectivity=8)
     if n <= 2:
         return mask
@@ -264,7 +265,7 @@ def envelope_from_image(path: str | os.PathLike, height_m: float) -> ShapeEnvelo
     if sil.sum() < 64:
         raise InputError(f"envelope image '{path}' has no silhouette (under 64 pixels); give a dark shape "
                          "on a light background or a PNG with transparency")
-    sil = _largest_component(sil)
+    sil = largest_component(sil)
     rows = np.flatnonzero(sil.any(1))
     env = envelope_from_mask(sil, float(height_m) / max(rows.max() - rows.min() + 1, 1), None,
                              os.path.splitext(os.path.basename(path))[0])

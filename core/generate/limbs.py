@@ -2,12 +2,14 @@
 
 A crown so dense that no bark shows between its leaves gives the trace nothing to follow; the
 reconstruction then links the motion hierarchy's clusters with straight lines, a web that reads as
-no tree. Here the crown above the reconstruction's own trunk is grown instead, by the generator's
-2D growth (:func:`.growth.grow_2d`: the species' Dirichlets of branching angles and length ratios,
-its branch orientation and lengths, attractors spread over Ω') with frame 1's tree pixels as Ω'
-(image pixels as units, x right and z up from the trunk base). The species is a library one of the
-tree's form or one the user fitted. The grown nodes then move with the tracks near them, as traced
-nodes do (:func:`..reconstruct.node_motion.follow_tracks`).
+no tree. Here the crown above the reconstruction's own trunk is grown instead, by space
+colonization (:mod:`.colonize`) toward points spread over frame 1's tree pixels (image pixels as
+units, x right and z up from the trunk base), driven by a species: its bone length is the step,
+its mean branch angle from the vertical sets the upward pull, its shortest branch the stubs
+pruned. (The generator's pair growth, :func:`.growth.grow_2d`, was tried here first: in a crown's
+picture plane it tangles and hooks.) The species is a library one of the tree's form or one the
+user fitted. The grown nodes then move with the tracks near them, as traced nodes do
+(:func:`..reconstruct.node_motion.follow_tracks`).
 
 Kept from the reconstruction: the trunk (node 0 to the first fork, at most :data:`TRUNK_MAX` of
 the height; rising on straight to where the crown widens, as a generated tree's) and a hidden
@@ -26,7 +28,7 @@ from ..reconstruct.run import Result
 from ..reconstruct.skeleton2d import NODE_MOTION_SCALE, Skeleton2D, binarize, crown_scale
 from ..topology import branching_level, trunk_chain
 from .colonize import colonize, prune_stubs
-from .envelopes import Region2D
+from .envelopes import Region2D, largest_component
 from .growth import stem_top
 from .species import SpeciesModel
 
@@ -69,22 +71,25 @@ def limb_species(spec: str, form: str) -> SpeciesModel:
     return load_species_spec(name)[0]
 
 
-def crown_region(mask: np.ndarray, trunk_px: np.ndarray) -> tuple[Region2D, float]:
-    """Ω' from frame 1's tree pixels ``mask (H, W)`` bool and the kept trunk ``trunk_px (K, 2)``
-    (x, y) px from its base: the largest part of the pixels closed over gaps of
-    :data:`CLOSE_FRAC` of the tree's height (the crown), the trunk drawn in and joined to the
-    crown by a straight stem from its top, as (x − x_base, y_base − y) px; also the tree's
-    height, px."""
-    mask = np.asarray(mask, bool)
-    rows = np.flatnonzero(mask.any(1))
+def _height_px(mask: np.ndarray, base: np.ndarray) -> float:
+    """Height (px) of frame 1's tree pixels ``mask (H, W)`` bool down to the trunk base
+    ``base (2,)`` (x, y) px."""
+    rows = np.flatnonzero(np.asarray(mask, bool).any(1))
     if len(rows) == 0:
         raise InputError("frame 1 shows no tree pixels to grow limbs in; trace them (--limbs trace)")
+    return float(max(base[1], rows.max()) - rows.min() + 1)
+
+
+def crown_region(mask: np.ndarray, trunk_px: np.ndarray, height: float) -> Region2D:
+    """Ω' from frame 1's tree pixels ``mask (H, W)`` bool and the kept trunk ``trunk_px (K, 2)``
+    (x, y) px from its base: the largest part of the pixels closed over gaps of
+    :data:`CLOSE_FRAC` of the tree's ``height`` (px; the crown), the trunk drawn in and joined to
+    the crown by a straight stem from its top, as (x − x_base, y_base − y) px."""
     base = trunk_px[0]
-    height = float(max(base[1], rows.max()) - rows.min() + 1)
     k = max(3, int(round(CLOSE_FRAC * height)) | 1)
-    closed = cv2.morphologyEx(mask.astype(np.uint8), cv2.MORPH_CLOSE, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k)))
-    _, lab, stats, _ = cv2.connectedComponentsWithStats(closed, connectivity=8)
-    crown = (lab == 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))).astype(np.uint8)
+    closed = cv2.morphologyEx(np.asarray(mask, np.uint8), cv2.MORPH_CLOSE,
+                              cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k)))
+    crown = largest_component(closed > 0).astype(np.uint8)
     ys, xs = np.nonzero(crown)
     top = trunk_px[-1]
     near = int(np.argmin((xs - top[0]) ** 2 + (ys - top[1]) ** 2))
@@ -93,7 +98,7 @@ def crown_region(mask: np.ndarray, trunk_px: np.ndarray) -> tuple[Region2D, floa
     contours, _ = cv2.findContours(crown, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
     c = max(contours, key=cv2.contourArea).reshape(-1, 2).astype(np.float64)
     poly = np.stack([c[:, 0] - base[0], base[1] - c[:, 1]], 1)
-    return Region2D(poly), height
+    return Region2D(poly)
 
 
 def grown_limbs(res: Result, model: SpeciesModel, seed: int = 0, budget: int | None = None) -> Skeleton2D:
@@ -104,15 +109,14 @@ def grown_limbs(res: Result, model: SpeciesModel, seed: int = 0, budget: int | N
     mask = res.foreground.mask if res.foreground is not None else res.outline.mask
     p0 = sk.nodes2d[0].astype(np.float64)
     base = p0[0]
-    rows = np.flatnonzero(np.asarray(mask, bool).any(1))
-    height = float(max(base[1], rows.max() if len(rows) else base[1]) - (rows.min() if len(rows) else 0) + 1)
+    height = _height_px(mask, base)
     chain = trunk_chain(sk.parents)
     trunk = np.stack([p0[chain, 0] - base[0], base[1] - p0[chain, 1]], 1)
     low = trunk[:, 1] <= TRUNK_MAX * height
     trunk = trunk[:max(2, int(np.argmin(low)) if not low.all() else len(trunk))]
     if len(trunk) < 2 or np.linalg.norm(trunk[-1] - trunk[0]) < 1e-6:
         trunk = np.array([[0.0, 0.0], [0.0, 0.3 * height]])
-    region, height = crown_region(mask, np.stack([base[0] + trunk[:, 0], base[1] - trunk[:, 1]], 1))
+    region = crown_region(mask, np.stack([base[0] + trunk[:, 0], base[1] - trunk[:, 1]], 1), height)
     # a fork below where the crown widens would have no room: the trunk rises on to there, as a
     # generated tree's does (:func:`.growth.stem_top`)
     up = min(stem_top(region) + 0.02 * height, TRUNK_MAX * height)
