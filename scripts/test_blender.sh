@@ -93,4 +93,7 @@ if [ "$(cat "$VENV/.requirements.sha" 2>/dev/null)" != "$want" ]; then
   echo "$want" > "$VENV/.requirements.sha"
 fi
 echo "== bpy 5.3 (Python 3.13 module)"
-"$RB" run "$VENV/bin/python" -m pytest -q -p no:cacheprovider -m bpy53 tests
+# side by side on every core (pytest-xdist), then the tests that measure time with nothing beside them
+"$RB" run "$VENV/bin/python" -m pytest -q -p no:cacheprovider -n auto --maxprocesses=4 --dist loadfile \
+  -m "bpy53 and not alone" tests
+"$RB" run "$VENV/bin/python" -m pytest -q -p no:cacheprovider -m "bpy53 and alone" tests

@@ -50,9 +50,50 @@ def scores(runs):
     return out
 
 
-def pytest_terminal_summary(terminalreporter):
-    """Print the measurement tables the tests collected (tests/report.py)."""
-    for title, lines in report.TABLES.items():
+# --- the tables under pytest-xdist (scripts/test.sh runs the wheel's tests on every core): each
+# worker collects its own, writes them to a folder the controller made, and the controller prints them
+@pytest.hookimpl(optionalhook=True)
+def pytest_configure_node(node):
+    """(xdist controller) hand every worker the folder its tables go to."""
+    config = node.config
+    if not hasattr(config, "_tfv_tables"):
+        import tempfile
+        config._tfv_tables = tempfile.mkdtemp(prefix="tfv-tables-")
+    node.workerinput["tfv_tables"] = config._tfv_tables
+
+
+def pytest_sessionfinish(session):
+    folder = getattr(session.config, "workerinput", {}).get("tfv_tables")
+    if folder and report.TABLES:
+        import json
+        name = os.path.join(folder, session.config.workerinput["workerid"] + ".json")
+        with open(name + ".tmp", "w", encoding="utf-8") as fh:
+            json.dump(report.TABLES, fh)
+        os.replace(name + ".tmp", name)
+
+
+def _workers_tables(config) -> dict[str, list[str]]:
+    """The tables the xdist workers wrote (a table split over two workers keeps one header)."""
+    import glob
+    import json
+    import shutil
+    folder = getattr(config, "_tfv_tables", None)
+    tables: dict[str, list[str]] = {}
+    if not folder:
+        return tables
+    for name in sorted(glob.glob(os.path.join(folder, "*.json"))):
+        with open(name, encoding="utf-8") as fh:
+            for title, lines in json.load(fh).items():
+                have = tables.setdefault(title, [])
+                have.extend(lines[1:] if have and lines and lines[0] == have[0] else lines)
+    shutil.rmtree(folder, ignore_errors=True)
+    return tables
+
+
+def pytest_terminal_summary(terminalreporter, config):
+    """Print the measurement tables the tests collected (tests/report.py), in this process or in
+    the xdist workers."""
+    for title, lines in {**report.TABLES, **_workers_tables(config)}.items():
         terminalreporter.section(title)
         for line in lines:
             terminalreporter.write_line(line)

@@ -268,6 +268,7 @@ def _paced_run() -> tuple[list, str]:
     return ends, f"{total:.2f} s: " + ", ".join(f"{s} {f:.2f} at {share:.2f}" for s, f, share in ends)
 
 
+@pytest.mark.alone
 def test_progress_moves_at_an_even_pace_over_a_reconstruction():
     """The bar's fraction at the end of each stage is within 15 % of the share of the run's time
     spent so far (from the callback's own timestamps: no absolute seconds), and never goes back.

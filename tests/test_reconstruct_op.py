@@ -88,6 +88,7 @@ def test_mask_outline_is_converted_to_pixels(addon):
     assert poly == pytest.approx(np.array([[120, 324], [360, 324], [360, 36], [120, 36]]))
 
 
+@pytest.mark.alone
 @pytest.mark.parametrize("stage", ["tracking", "hierarchy", "skeleton", "lift", "motion"])
 def test_cancel_at_every_stage_stops_within_a_second(stage):
     s = plain_settings(frames="0:60")
