@@ -152,7 +152,7 @@ GENERATE_HELP = """generation:
   tree3d.npz and the files asked for by --fbx/--usd/--gltf/--blend/--preview (tree.fbx, ...).
   With a VIDEO the reconstruction's files go to DIR as usual (without exports), plus
   DIR/species.json (the species fitted from the reconstructed tree). --height is the envelope's
-  height in metres; --no-leaves/--leaf-density/--leaf-image apply to the generated trees."""
+  height in metres; --twigs/--no-leaves/--leaf-density/--leaf-image apply to the generated trees."""
 
 
 def _progress_printer(quiet: bool):
@@ -229,7 +229,7 @@ def _plan_generation(args):
     req = gb.GenerateRequest(count=args.generate, species=args.species, envelope=args.envelope, wind=args.wind,
                              audio=args.audio, seed=args.seed, nodes=args.nodes, frames_out=args.frames_out,
                              seconds=args.seconds, height_m=args.height,
-                             leaf_density=0.0 if args.no_leaves else args.leaf_density)
+                             leaf_density=0.0 if args.no_leaves else args.leaf_density, twig_depth=args.twigs)
     gb.check_request(req, has_video=args.video is not None)
     plan = SimpleNamespace(req=req, model=None, species_label=None, envelope=None, envelope_label=None)
     if req.species is not None:
@@ -277,7 +277,7 @@ def _generate_only(args, plan) -> int:
 def _generate_from_tree(args, plan, tree, name, outputs, wanted) -> int:
     """``VIDEO --generate N``: fit the species of the reconstructed ``tree``, save DIR/species.json,
     grow the trees (default envelope: the reconstruction's)."""
-    plan.model = species.fit_species(gb.without_twigs(tree), name)
+    plan.model = species.fit_species(tree, name)              # its branches: the twigs left out
     plan.species_label = os.path.join(args.out, gb.SPECIES_FILE)
     species.save_species(plan.species_label, plan.model)
     if not args.quiet:

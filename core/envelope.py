@@ -27,8 +27,10 @@ class Envelope:
     radius: np.ndarray
 
     def at(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(centre, radius) interpolated at heights ``z``; radius 0 above and below the outline."""
-        inside = (z >= self.z[0] - 0.5) & (z <= self.z[-1] + 0.5)
+        """(centre, radius) interpolated at heights ``z``; radius 0 above and below the outline
+        (beyond half a row: half a pixel for an outline's, not half a metre for one in metres)."""
+        half = 0.5 * float(np.median(np.diff(self.z))) if len(self.z) > 1 else 0.5
+        inside = (z >= self.z[0] - half) & (z <= self.z[-1] + half)
         c = np.interp(z, self.z, self.centre)
         r = np.where(inside, np.interp(z, self.z, self.radius), 0.0)
         return c, r

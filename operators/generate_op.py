@@ -95,7 +95,7 @@ def grow_params(props, model_frames: int | None = None, scene=None) -> growth.Gr
         frames = frames or scene.frame_end - max(scene.frame_start, 1) + 1
     frames = frames or model_frames or 250
     return growth.GrowParams(seed=props.gen_seed, height_m=props.gen_height, node_budget=props.gen_nodes,
-                             n_frames=int(frames), fps=fps, wind=props.gen_wind,
+                             n_frames=int(frames), fps=fps, wind=props.gen_wind, twig_depth=props.gen_twig_depth,
                              leaf_density=props.gen_leaf_density if props.build_leaves else 0.0)
 
 

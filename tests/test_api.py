@@ -75,7 +75,7 @@ def test_generate_grows_distinct_seeded_trees():
     a = api.generate("broad", 2, envelope="heart", seed=3, node_budget=80, n_frames=30)
     b = api.generate("broad", 1, envelope="heart", seed=3, node_budget=80, n_frames=30)
     assert len(a) == 2 and all(t.nodes3d.shape[0] == 30 for t in a)
-    assert a[0].n_nodes <= 80 and a[0].meta["species"] == "broad" and a[0].meta["seed"] == 3
+    assert a[0].meta["twigs"]["first_node"] <= 80 and a[0].meta["species"] == "broad" and a[0].meta["seed"] == 3
     np.testing.assert_array_equal(a[0].nodes3d, b[0].nodes3d)          # same seed, same tree
     assert a[0].n_nodes != a[1].n_nodes or not np.allclose(a[0].nodes3d[0], a[1].nodes3d[0])
     with pytest.raises(api.InputError, match="unknown generation setting"):

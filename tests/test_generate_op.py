@@ -74,7 +74,11 @@ def test_generate_one_tree_at_the_cursor_inside_its_envelope():
     rig = _rigs(coll)[0]
     np.testing.assert_allclose(rig.location, (4.0, -2.0, 0.5))
     names = [b.name for b in rig.data.bones if b.name.startswith("B")]
-    assert 100 <= len(names) <= 119
+    # the budget's bones, then the twigs (the panel's default depth) the same growth draws
+    same = growth.grow_tree(species.load_species(species.species_library()["broad"]), envelopes.topiary("heart", 6.0),
+                            growth.GrowParams(seed=3, n_frames=2, node_budget=120, twig_depth=p.gen_twig_depth))
+    grown = same.meta["twigs"]["first_node"] - 1
+    assert p.gen_twig_depth == 2 and 100 <= grown <= 119 and len(names) == same.n_nodes - 1 > grown
     assert any(b.name.startswith("L") for b in rig.data.bones)          # the species' leaves
     env = envelopes.topiary("heart", 6.0)
     inside = []

@@ -219,6 +219,7 @@ class TREE_PT_generate(_TreePanel, bpy.types.Panel):
         col.prop(props, "gen_seed")
         col.prop(props, "gen_height")
         col.prop(props, "gen_nodes")
+        col.prop(props, "gen_twig_depth")
         col.prop(props, "gen_frames")
         col.prop(props, "gen_leaf_density", slider=True)
         col.prop(props, "gen_wind")

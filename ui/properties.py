@@ -9,6 +9,7 @@ import bpy
 from ..core.detail.branch_mesh import MeshParams
 from ..core.detail.leaf_clusters import LeafParams
 from ..core.detail.twigs import TwigParams
+from ..core.generate.growth import GrowParams
 from ..core.pipeline import Settings
 from ..core.reconstruct.lift import LiftParams
 from ..core.reconstruct.motion import MotionParams
@@ -31,6 +32,7 @@ CORE_FIELDS = {
     "solver": (MotionParams, "solver"),
     "height_m": (Settings, "height_m"),
     "twig_depth": (TwigParams, "depth"),
+    "gen_twig_depth": (GrowParams, "twig_depth"),
     "curliness": (MeshParams, "curliness"),
     "bark": (MeshParams, "bark"),
     "leaf_density": (LeafParams, "density"),
@@ -251,6 +253,10 @@ class TreeVideoSettings(bpy.types.PropertyGroup):
                                         description="Height of a generated tree (metres)")
     gen_nodes: bpy.props.IntProperty(name="Nodes", default=200, min=8, max=5000,
                                      description="Node budget of a generated tree (bones + 1)")
+    gen_twig_depth: bpy.props.IntProperty(name="Twigs", **_core("gen_twig_depth"),
+                                          description="Generations of twigs copied from a generated tree's own forks "
+                                                      "onto its branch tips, riding on their motion (0: none); the "
+                                                      "foliage hangs on them, as on a reconstruction's")
     gen_leaf_density: bpy.props.FloatProperty(name="Foliage", default=1.0, min=0.0, max=1.0, subtype="FACTOR",
                                               description="Share of the species' leaf clusters on a generated tree (1: as "
                                                           "leafy as the species, fewer: fewer, larger clusters; 0: bare)")

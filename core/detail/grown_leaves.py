@@ -93,14 +93,19 @@ def grow_leaves(tree, info: dict, density: float = 1.0, seed: int = 0, params: L
     if len(thin) == 0 or density <= 0:
         return None
     H = max(float(np.ptp(rest[:, 2])), 1e-6)
-    n = int(min(p.max_clusters, max(1, round(info["per_node"] * density * len(thin)))))
+    # the source's clusters per thin branch node were counted without its twigs (species.leaf_info
+    # of detail.twigs.without_twigs), so the count is too; they hang on the twigs as well
+    first = int((tree.meta.get("twigs") or {}).get("first_node", tree.n_nodes))
+    n_thin = int(np.sum(thin < first)) or len(thin)
+    n = int(min(p.max_clusters, max(1, round(info["per_node"] * density * n_thin))))
     node = rng.choice(thin, n, replace=n > len(thin))
     radius = float(info["radius_frac"]) * H / np.sqrt(min(max(density, 1e-3), 1.0))
     pos = rest[node] + rng.normal(scale=0.35 * radius, size=(n, 3))
     target = info.get("fill")
     size = 1.0
     if target is not None and envelope is not None:
-        anchors = np.vstack([rest[thin], twig_anchors(tree, seed)])
+        drawn = first < tree.n_nodes                        # the tree carries its twigs
+        anchors = rest[thin] if drawn else np.vstack([rest[thin], twig_anchors(tree, seed)])
         node, pos, size = _top_up(node, pos, rest, thin, anchors, radius, float(target), envelope,
                                   int(info["cards"]), seed, p.max_clusters, rng)
     colour = np.clip(np.asarray(info["colour"], np.float64)[None] * rng.uniform(0.92, 1.08, (len(node), 1)), 0, 1)

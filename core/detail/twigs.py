@@ -38,8 +38,8 @@ grows from (bones stay connected); only its orientation lags (inertia) and swing
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
-from dataclasses import dataclass
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -207,7 +207,8 @@ def twig_rotations(driver_q: np.ndarray, lag: int, attenuation: float) -> np.nda
 # ----------------------------------------------------------------------------- growth
 
 def add_twigs(tree: Tree3D, params: TwigParams | None = None,
-              progress: ProgressFn | None = None, tree_px: np.ndarray | None = None) -> Tree3D:
+              progress: ProgressFn | None = None, tree_px: np.ndarray | None = None,
+              inside: Callable[[np.ndarray], np.ndarray] | None = None) -> Tree3D:
     """A new :class:`Tree3D` with twigs appended (see the module docstring).
 
     The original nodes keep their indices (so bones ``B{child:03d}`` of the reconstructed tree keep
@@ -218,7 +219,9 @@ def add_twigs(tree: Tree3D, params: TwigParams | None = None,
     ``params.depth == 0`` the tree is returned unchanged (the same object). With ``tree_px (H, W)``
     (frame 1's tree pixels, :func:`.branch_fit.tree_map`) and ``meta["base_px"]`` /
     ``meta["metres_per_px"]``, a twig must also lie over the tree in frame 1 (see
-    :func:`on_tree_pixels`): where the video shows sky, it shows no twig."""
+    :func:`on_tree_pixels`): where the video shows sky, it shows no twig. ``inside(pts (..., 3)
+    metres) -> (...) bool`` is one more test every twig must pass (a generated tree's drawn
+    outline, which the envelope's surface of revolution only bounds)."""
     p = params or TwigParams()
     if p.depth <= 0:
         return tree
@@ -229,6 +232,8 @@ def add_twigs(tree: Tree3D, params: TwigParams | None = None,
     N = len(parents)
     env = envelope_from_meta(tree.meta)
     seen = on_tree_pixels(tree_px, tree.meta) if tree_px is not None else None
+    if inside is not None:
+        seen = inside if seen is None else (lambda pts, a=seen, b=inside: a(pts) & b(pts))
     height = max(float(np.ptp(rest, axis=0).max()), 1e-6)
     min_len = p.min_length * height
     rng = np.random.default_rng(p.seed)
@@ -308,6 +313,18 @@ def add_twigs(tree: Tree3D, params: TwigParams | None = None,
         np.concatenate([np.asarray(tree.radius, np.float64), np.concatenate(new_rad)]).astype(np.float32),
         np.concatenate([np.asarray(tree.level, np.int64), np.concatenate(new_lvl)]).astype(np.int32),
         tree.fps, tree.name, meta))
+
+
+def without_twigs(tree: Tree3D) -> Tree3D:
+    """The branches of ``tree`` without the twigs :func:`add_twigs` copied onto them (appended
+    after ``meta["twigs"]["first_node"]``), leaves kept: what a species is fitted from (twigs
+    would halve the branch scale it learns and its trees would stop growing at 60 % of Ω')."""
+    first = (tree.meta.get("twigs") or {}).get("first_node")
+    if not first or first >= tree.n_nodes:
+        return tree
+    n = int(first)
+    return replace(tree, parents=tree.parents[:n], nodes3d=tree.nodes3d[:, :n],
+                   radius=tree.radius[:n], level=tree.level[:n])
 
 
 def _carry(src: Tree3D, out: Tree3D) -> Tree3D:

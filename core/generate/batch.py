@@ -22,8 +22,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..detail.twigs import TwigParams
 from ..errors import InputError
-from ..params import param
+from ..params import check, param, same_as
 from ..progress import ProgressFn
 
 MAX_TREES = 1000
@@ -39,7 +40,7 @@ class GenerateRequest:
     from the reconstruction); ``envelope``: a topiary name, an image path or None (the
     reconstruction's envelope, else ``default_envelope``); ``frames_out`` / ``seconds`` the length
     of each animation (None: the species' source clip); ``height_m`` of the envelope;
-    ``leaf_density`` 0 for bare trees."""
+    ``leaf_density`` 0 for bare trees; ``twig_depth`` generations of twigs (0: none)."""
 
     count: int = param(1, 1, MAX_TREES, what="--generate")
     species: str | None = None
@@ -52,6 +53,7 @@ class GenerateRequest:
     seconds: float | None = None
     height_m: float = 10.0
     leaf_density: float = 1.0
+    twig_depth: int = same_as(TwigParams, "depth")
 
 
 def tree_folders(count: int) -> list[str]:
@@ -92,6 +94,7 @@ def check_request(req: GenerateRequest, has_video: bool) -> None:
         raise InputError(f"--leaf-density {req.leaf_density} must be in [0, 1]; 0 or --no-leaves for bare trees")
     if req.seed < 0:
         raise InputError(f"--seed {req.seed} must be >= 0")
+    check(req)                                   # --twigs (and the ranged fields above) in range
 
 
 def load_species_spec(spec: str):
@@ -126,19 +129,6 @@ def check_audio(path: str) -> None:
     """Read ``path`` once (missing, non-WAV, empty or silent → :class:`InputError`)."""
     from .wind import audio_envelope
     audio_envelope(path, 24.0, 24)
-
-
-def without_twigs(tree):
-    """The reconstructed branches of ``tree`` without the twigs copied onto them (they are appended
-    after ``meta["twigs"]["first_node"]``): what a species is fitted from, as for the shipped library
-    (twigs would halve the branch scale it learns and the trees would stop growing at 60 % of Ω')."""
-    import dataclasses
-    first = (tree.meta.get("twigs") or {}).get("first_node")
-    if not first or first >= tree.n_nodes:
-        return tree
-    n = int(first)
-    return dataclasses.replace(tree, parents=tree.parents[:n], nodes3d=tree.nodes3d[:, :n],
-                               radius=tree.radius[:n], level=tree.level[:n])
 
 
 def n_frames_for(req: GenerateRequest, model) -> int:
@@ -179,6 +169,7 @@ def generate_trees(model, species_label: str, envelope, envelope_label: str, req
         log(f"[generate] tree {i + 1}/{req.count}: seed {seed}")
         params = GrowParams(seed=seed, height_m=None, node_budget=int(req.nodes), n_frames=n_frames,
                             wind=float(req.wind), leaf_density=float(req.leaf_density),
+                            twig_depth=int(req.twig_depth),
                             name=f"{model.name}_{seed}")
         tree = grow_tree(model, envelope, params, audio=req.audio, progress=progress)
         d = os.path.join(out_dir, folder)
@@ -195,6 +186,6 @@ def generate_trees(model, species_label: str, envelope, envelope_label: str, req
              "envelope": envelope_label, "count": int(req.count), "seed": int(req.seed), "wind": float(req.wind),
              "audio": os.path.abspath(req.audio) if req.audio else None, "nodes": int(req.nodes),
              "frames": n_frames, "fps": float(model.fps), "height_m": float(np.max(envelope.z)),
-             "leaf_density": float(req.leaf_density), "trees": entries}
+             "leaf_density": float(req.leaf_density), "twig_depth": int(req.twig_depth), "trees": entries}
     _write_json(os.path.join(out_dir, INDEX), index)
     return entries

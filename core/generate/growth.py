@@ -29,6 +29,9 @@
    minimum-jerk bump, :func:`..detail.shapes.curly_branch`, where that stays inside Ω').
 3. **Lift** with the reconstruction's Bayesian push (:func:`..reconstruct.lift.lift`) on a raster of Ω'.
 4. **Motion** from sampled spectra (:mod:`.sway`), scaled by wind × audio (:mod:`.wind`).
+5. **Twigs** copied from the new tree's own forks (:func:`..detail.twigs.add_twigs`, ``twig_depth``
+   generations, riding on their branches' motion), as a reconstruction draws them: the fine
+   branching the node budget leaves out, which the foliage hangs on. Not on palms (fronds).
 
 Deterministic per seed: the same seed and parameters give the same tree.
 """
@@ -40,10 +43,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..detail.twigs import TwigParams, add_twigs
 from ..envelope import Envelope
 from ..errors import InputError
 from ..meta import TreeMeta
 from ..outline import Outline, polygon_to_mask
+from ..params import check, same_as
 from ..progress import ProgressFn, report, sub_progress
 from ..reconstruct.lift import LiftParams, lift
 from ..reconstruct.skeleton2d import Skeleton2D
@@ -75,7 +80,8 @@ class GrowParams:
     ``tip_radius`` share of the height and ``pipe_exponent`` of the pipe-model radii (None: fitted
     so the trunk and the tips are as wide as the source's, :func:`species_radii`; 0.0025 and 2
     for a species without widths); ``leaf_density`` passed on in
-    ``meta`` for the leaf builder; ``conifer`` (None: the model's); ``name``."""
+    ``meta`` for the leaf builder; ``twig_depth`` generations of twigs drawn beyond the budget's
+    nodes (0: none; the reconstruction's default); ``conifer`` (None: the model's); ``name``."""
 
     seed: int = 0
     height_m: float | None = None
@@ -99,6 +105,7 @@ class GrowParams:
     tip_radius: float | None = None
     pipe_exponent: float | None = None
     leaf_density: float = 1.0
+    twig_depth: int = same_as(TwigParams, "depth")
     conifer: bool | None = None
     name: str | None = None
 
@@ -115,6 +122,7 @@ class Grown2D:
 
 
 def check_params(p: GrowParams) -> None:
+    check(p)
     if int(p.node_budget) < 4:
         raise InputError(f"node budget {p.node_budget} is too small; give at least 4 (e.g. 200)")
     if int(p.n_frames) < 1:
@@ -459,6 +467,17 @@ def species_radii(parents: np.ndarray, height: float, widths: tuple | None, tip:
     return r.astype(np.float32)
 
 
+def with_twigs(tree: Tree3D, rest: np.ndarray, region: Region2D, params: TwigParams) -> Tree3D:
+    """``tree`` with twigs (:func:`..detail.twigs.add_twigs`) laid out on its rest pose ``rest
+    (N, 3)`` metres, whatever its first frame's sway (so the wind does not change them), inside
+    the drawn outline ``region`` as well as the envelope, and riding on the tree's motion from rest."""
+    first = Tree3D(tree.parents, np.concatenate([rest[None], tree.nodes3d]).astype(np.float32), tree.radius,
+                   tree.level, tree.fps, tree.name, tree.meta)
+    out = add_twigs(first, params, inside=lambda pts: region.contains(pts[..., [0, 2]]))
+    out.nodes3d = out.nodes3d[1:]
+    return out
+
+
 def grow_tree(model: SpeciesModel, envelope: Envelope, params: GrowParams | None = None,
               audio: str | os.PathLike | np.ndarray | None = None,
               progress: ProgressFn | None = None) -> Tree3D:
@@ -488,9 +507,10 @@ def grow_tree(model: SpeciesModel, envelope: Envelope, params: GrowParams | None
     rng_grow, rng_sway = (np.random.default_rng(s) for s in ss.spawn(2))
     region = region_of(env)
     report(progress, "growing", 0.0)
-    if model.form == "palm" and model.palm:
+    palm = model.palm if model.form == "palm" else None
+    if palm:
         from .palm import grow_palm
-        par, rest = grow_palm(model.palm, env, rng_grow)
+        par, rest = grow_palm(palm, env, rng_grow)
         g = Grown2D(par, rest[:, [0, 2]], np.ones(len(par), bool), "palm")
         mu = math.radians(model.mu_deg)
         report(progress, "growing", 0.85)
@@ -522,6 +542,8 @@ def grow_tree(model: SpeciesModel, envelope: Envelope, params: GrowParams | None
             "time_offset_s": float(p.time_offset_s), "sway_scale": float(sway_scale)}
     tree = Tree3D(g.parents.astype(np.int32), nodes3d.astype(np.float32), radius,
                   branching_level(g.parents).astype(np.int32), fps, p.name or f"{model.name}_{int(p.seed)}", meta)
+    if not palm and p.twig_depth > 0:
+        tree = with_twigs(tree, rest, region, TwigParams(depth=int(p.twig_depth), seed=int(p.seed)))
     if p.leaf_density > 0 and model.leaves is not None:
         from ..detail.grown_leaves import grow_leaves
         tree.leaves = grow_leaves(tree, model.leaves, p.leaf_density, int(p.seed), envelope=env)

@@ -331,7 +331,10 @@ def sway_excursion(nodes3d: np.ndarray, height: float) -> float:
 def fit_species(tree, name: str, keep: float = KEEP_FRACTION) -> SpeciesModel:
     """Fit a :class:`SpeciesModel` to a :class:`~.tree3d.Tree3D` (metres, frame 0 = rest).
 
+    Twigs (:func:`..detail.twigs.add_twigs`) are left out: the species is its branches'.
     Raises :class:`InputError` if the tree has no bifurcation or fewer than 8 frames."""
+    from ..detail.twigs import without_twigs
+    tree = without_twigs(tree)
     parents = np.asarray(tree.parents)
     nodes = np.asarray(tree.nodes3d, np.float64)
     if nodes.shape[0] < 8:

@@ -1,6 +1,7 @@
 """GUI set-up for docs/species.png: the tree reconstructed from sample_videos/broad (left) beside
-three trees grown from its species in its own envelope, with as many nodes as it has (issue 19:
-generated trees look like their species — crowns as full, trunks as thick, the same leaf colour).
+three trees grown from its species in its own envelope, with as many branch nodes as it has and
+twigs as deep (issue 19: generated trees look like their species — crowns as full, trunks as
+thick, the same leaf colour).
 
     real-blender gui-shot docs/species.png --size 1600x900 --wait 12 -- \
         blender --factory-startup --python tests/gui/species_shot.py
@@ -18,6 +19,7 @@ for ob in list(bpy.data.objects):
     bpy.data.objects.remove(ob)
 
 from tree_from_video.core import pipeline  # noqa: E402
+from tree_from_video.core.detail.twigs import without_twigs  # noqa: E402
 from tree_from_video.core.envelope import envelope_from_meta  # noqa: E402
 from tree_from_video.core.generate import growth, species  # noqa: E402
 from tree_from_video.operators.scene import build  # noqa: E402
@@ -28,8 +30,9 @@ tree = pipeline.build_3d(pipeline.run(os.path.join(folder, "video.mp4"), os.path
                          name="Reconstructed")
 model = species.fit_species(tree, "broad")
 env = envelope_from_meta(tree.meta)
-# as many nodes as the reconstruction draws (its twigs included): crowns as full as its own
-trees = [tree] + [growth.grow_tree(model, env, growth.GrowParams(seed=seed, n_frames=96, node_budget=tree.n_nodes,
+# as many branch nodes as the reconstruction, and the same twigs (the default depth) on top
+branches = without_twigs(tree).n_nodes
+trees = [tree] + [growth.grow_tree(model, env, growth.GrowParams(seed=seed, n_frames=96, node_budget=branches,
                                                                  name=f"Generated {seed}"))
                   for seed in (1, 2, 3)]
 spacing = 1.15 * 2 * max(float(env.radius.max()), 1.0)
