@@ -57,9 +57,10 @@ shot panel 1600x1280 10 panel_shot.py "no reconstruction in the GUI run" "recons
 echo "== Blender 4.3 GUI: a generated forest and the Generate sub-panel"
 shot generate 1600x1000 10 generate_shot.py "no forest in the GUI run" "forest: {'FINISHED'}" "ui ready"
 
-# (waits 20 s: one glTF export took 3.9 s under software GL on one machine, and 12 s caught the second unwritten)
+# (waits 40 s: a generated tree's glTF export takes 3.9-6.4 s under software GL since its twigs are drawn,
+# and 20 s once caught the second tree unwritten)
 echo "== Blender 4.3 GUI: two forest trees exported as a click starts it (modal, one tree per tick), the Export sub-panel"
-shot export 1600x900 20 export_shot.py "the modal export did not write the selected trees in the GUI" \
+shot export 1600x900 40 export_shot.py "the modal export did not write the selected trees in the GUI" \
   "export invoke returned {'RUNNING_MODAL'}" "exporting 'Forest 001' (2/2)" \
   "export written: ['Forest_000.glb', 'Forest_001.glb']" "ui ready"
 
