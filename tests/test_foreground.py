@@ -36,7 +36,7 @@ def test_the_graph_cut_finds_a_backlit_crown_the_colour_test_loses_against_dark_
     outline, truth, img = _backlit()
     colour = tree_map(img, outline).tree & outline
     fg = foreground(img, outline)
-    assert fg is not None and fg.method == "graph cut"
+    assert fg is not None and fg.method.startswith("graph cut")
     t = truth & outline
     print(f"\nIoU: colour test {_iou(colour, t):.3f}, graph cut {_iou(fg.mask, t):.3f}")
     assert _iou(fg.mask, t) >= 0.95
@@ -82,3 +82,75 @@ def test_contour_segments_trace_the_mask_edge_in_pairs():
     on_edge = ((seg[:, 0] == 20) | (seg[:, 0] == 44)) | ((seg[:, 1] == 10) | (seg[:, 1] == 29))
     assert on_edge.all()
     assert len(contour_segments(np.zeros((5, 5), bool))) == 0
+
+
+def _real_crown(h=360, w=640, seed=0):
+    """What real footage gives (issue 31): a crown of sub-pixel leaves (a texture of light and dark
+    greens, no leaf larger than a pixel) against a smooth overcast sky, a second tree of the same
+    foliage beside it and a grassy field under it, all three in the ring round a loosely drawn
+    outline, which also cuts through the crown's edge. The outline, the true mask inside it and
+    the frame."""
+    rng = np.random.default_rng(seed)
+    yy, xx = np.mgrid[0:h, 0:w].astype(np.float32)
+    img = np.zeros((h, w, 3), np.float32)
+    img[:] = np.stack([218 + 10 * yy / h, 222 + 8 * yy / h, 226 + 6 * yy / h], -1)   # overcast sky (BGR)
+
+    def foliage(m):
+        t = rng.random(m.sum())[:, None]
+        dark, light = np.array([30, 70, 40]), np.array([90, 170, 130])
+        img[m] = dark + t * (light - dark) + rng.normal(0, 6, (m.sum(), 3))
+
+    field = yy > 0.86 * h
+    foliage(field)
+    img[field] *= [0.8, 1.1, 0.9]
+    crown = np.zeros((h, w), np.uint8)
+    cv2.ellipse(crown, (w // 2 - 40, int(0.45 * h)), (int(0.36 * w / 2 * 1.1), int(0.38 * h)), 0, 0, 360, 1, -1)
+    cv2.rectangle(crown, (w // 2 - 52, int(0.8 * h)), (w // 2 - 28, int(0.87 * h)), 1, -1)
+    for _ in range(25):                                             # sky seen through the crown
+        cv2.circle(crown, (int(w / 2 - 40 + rng.integers(-120, 120)), int(0.45 * h + rng.integers(-100, 100))),
+                   int(rng.integers(3, 9)), 0, -1)
+    crown = crown.astype(bool)
+    neighbour = np.zeros((h, w), np.uint8)
+    cv2.ellipse(neighbour, (int(0.86 * w), int(0.55 * h)), (int(0.13 * w), int(0.33 * h)), 0, 0, 360, 1, -1)
+    foliage(neighbour.astype(bool) & ~crown)
+    foliage(crown)
+    outline = np.zeros((h, w), np.uint8)
+    cv2.ellipse(outline, (w // 2 - 30, int(0.47 * h)), (int(0.36 * w / 2 * 1.05), int(0.41 * h)), 0, 0, 360, 1, -1)
+    outline = outline.astype(bool)
+    return outline, crown & outline, np.clip(img, 0, 255).astype(np.uint8)
+
+
+def test_a_real_crown_whose_ring_holds_foliage_is_found_by_its_texture():
+    """Issue 31: the nearest-sample colour test finds every leaf colour in a ring that crosses the
+    crown's edge, a second tree and a field, so the cut fell back to the whole ring's test and kept
+    nothing (IoU 0.00–0.01 on two real dense crowns; on this frame 0.04 before the texture ratio).
+    The inside-vs-ring histogram of colour and texture seeds the cut instead: IoU ≥ 0.85 on three
+    seeds, and the outline's sky stays background."""
+    for seed in range(3):
+        outline, truth, img = _real_crown(seed=seed)
+        fg = foreground(img, outline)
+        iou = _iou(fg.mask, truth)
+        sky = outline & ~truth
+        print(f"\nseed {seed}: {fg.method}, IoU {iou:.3f}, sky called tree {(fg.mask & sky).sum() / sky.sum():.3f}")
+        assert iou >= 0.85, (seed, fg.method, iou)
+        assert (fg.mask & sky).sum() / sky.sum() <= 0.25
+
+
+def test_the_ratio_map_is_the_inside_share_of_a_colour_and_texture_bin():
+    """ratio_map = h_in / (h_in + h_ring) on a hand case: a flat sky all round, a textured crown in
+    the middle of the outline: the crown's pixels are ~1 (never in the ring); a flat sky pixel is
+    f / (f + 1), f the share of the inside that is flat sky (the ring is all flat sky)."""
+    from tree_from_video.core.reconstruct.branch_fit import frame_lab
+    from tree_from_video.core.reconstruct.foreground import local_texture, ratio_map
+    rng = np.random.default_rng(1)
+    img = np.full((200, 200, 3), 220, np.uint8)
+    outline = np.zeros((200, 200), bool)
+    outline[40:160, 40:160] = True
+    crown = np.zeros_like(outline)
+    crown[70:130, 70:130] = True
+    img[crown] = rng.integers(20, 120, (crown.sum(), 3))
+    p = ratio_map(img, outline)
+    flat = local_texture(frame_lab(img)[..., 0]) < 0.01
+    f = (flat & outline).sum() / outline.sum()
+    assert np.median(p[75:125, 75:125]) > 0.95
+    assert abs(np.median(p[45:60, 45:155]) - f / (f + 1)) < 0.02

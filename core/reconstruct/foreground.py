@@ -24,6 +24,7 @@ from dataclasses import dataclass, replace
 
 import cv2
 import numpy as np
+from scipy.ndimage import gaussian_filter
 from scipy.spatial import cKDTree
 
 from .branch_fit import TreeMap, background_ring, frame_lab, tree_map
@@ -41,8 +42,23 @@ LOCAL_K = 150
 #: (on the dev samples a good cut keeps 0.90–0.98 of them; a sparse tree's grew to 1.2): then the
 #: whole ring's colour test is the foreground
 GROWTH_LIMIT = 1.05
+#: the nearest-sample colour test is taken to have lost the crown to a ring holding tree colours
+#: when it marks less than this share of what :func:`ratio_map` marks (synthetic samples 0.93–1.06,
+#: real crowns whose outline crosses foliage or other trees 0.25–0.74)
+CONTAMINATED = 0.85
+#: a cut that keeps less than this share of its seeds has collapsed (a thin tree at 160 × 120: 0)
+COLLAPSED = 0.3
 #: the local test runs at half the cut's size when that leaves at least this many px a side
 LOCAL_MIN_SIDE = 160
+
+
+#: bins of the inside-vs-ring histogram: per CIELAB axis (L 0–100, a and b −100–100) and of the
+#: local texture (log2(1 + std of L over 5 × 5 px), 0–5)
+RATIO_COLOUR_BINS = 16
+RATIO_TEXTURE_BINS = 8
+#: σ of the histograms' smoothing (bins) and of the tree-probability map's (px at the cut's size)
+RATIO_HIST_SIGMA = 1.0
+RATIO_MAP_SIGMA = 1.0
 
 
 @dataclass
@@ -79,6 +95,62 @@ def local_colour_test(img: np.ndarray, outline: np.ndarray, thr: float, k: int =
     return out
 
 
+def local_texture(lab_l: np.ndarray) -> np.ndarray:
+    """``(H, W)`` float32: log2(1 + the standard deviation of CIELAB L over 5 × 5 px): ~0–1 on a
+    sky or a wall, 2–4 on foliage whose leaves are a few px."""
+    L = np.asarray(lab_l, np.float32)
+    m1 = cv2.blur(L, (5, 5))
+    m2 = cv2.blur(L * L, (5, 5))
+    return np.log2(1.0 + np.sqrt(np.maximum(m2 - m1 * m1, 0.0)))
+
+
+def ratio_map(img: np.ndarray, outline: np.ndarray) -> np.ndarray | None:
+    """``(H, W)`` float32 in [0, 1]: how much likelier each pixel's colour and texture are inside
+    ``outline (H, W)`` bool than in the background ring round it, ``h_in / (h_in + h_ring)`` of
+    the two normalized, smoothed histograms over (L, a, b, texture) bins. Inside a loose outline
+    the sky, wall or field is the ring's (its share there is at most its share in the ring), and
+    the crown is the inside's even where the outline cuts through foliage and part of the crown is
+    in the ring: a colour test against the *nearest* ring sample then calls all of that foliage
+    background (real crowns: tree share 0.00–0.01). None without a ring."""
+    ry, rx = background_ring(outline)
+    if len(ry) < 50 or not outline.any():
+        return None
+    lab = frame_lab(img)
+    nb, tb = RATIO_COLOUR_BINS, RATIO_TEXTURE_BINS
+    lo, span = np.array([0.0, -100.0, -100.0]), np.array([100.0, 200.0, 200.0])
+    q = np.clip(((lab - lo) / span * nb).astype(np.int64), 0, nb - 1)
+    t = np.clip((local_texture(lab[..., 0]) / 5.0 * tb).astype(np.int64), 0, tb - 1)
+    code = ((q[..., 0] * nb + q[..., 1]) * nb + q[..., 2]) * tb + t
+    shape = (nb, nb, nb, tb)
+
+    def hist(c: np.ndarray) -> np.ndarray:
+        h = np.bincount(c, minlength=int(np.prod(shape))).reshape(shape).astype(np.float64)
+        return gaussian_filter(h, RATIO_HIST_SIGMA) / max(len(c), 1)
+
+    h_in, h_ring = hist(code[outline]), hist(code[ry, rx])
+    p = (h_in / (h_in + h_ring + 1e-12)).ravel()[code].astype(np.float32)
+    return cv2.GaussianBlur(p, (0, 0), RATIO_MAP_SIGMA)
+
+
+def ratio_foreground(frame_bgr: np.ndarray, outline: np.ndarray) -> Foreground | None:
+    """The tree's pixels of frame 1 by :func:`ratio_map` > 0.5 (computed at the cut's size, at
+    most :data:`MAX_SIDE` px, and scaled back); None without a ring."""
+    outline = np.asarray(outline, bool)
+    h, w = outline.shape
+    s = min(1.0, MAX_SIDE / max(h, w))
+    small = (max(1, round(w * s)), max(1, round(h * s)))
+    img = frame_bgr if s == 1.0 else cv2.resize(frame_bgr, small, interpolation=cv2.INTER_AREA)
+    ol = outline if s == 1.0 else cv2.resize(outline.astype(np.uint8), small, interpolation=cv2.INTER_NEAREST) > 0
+    p = ratio_map(img, ol)
+    if p is None:
+        return None
+    m = (p > 0.5) & ol
+    if s != 1.0:
+        m = cv2.resize(m.astype(np.uint8), (w, h), interpolation=cv2.INTER_LINEAR) > 0
+    m &= outline
+    return Foreground(m, float(m.sum() / max(outline.sum(), 1)), "texture ratio")
+
+
 def foreground(frame_bgr: np.ndarray, outline: np.ndarray, tmap: TreeMap | None = None) -> Foreground | None:
     """The tree's pixels in frame 1 (BGR uint8 ``(H, W, 3)``) inside ``outline (H, W)`` bool, see
     the module docstring; ``tmap`` the colour test if already computed. None when the outline
@@ -105,25 +177,43 @@ def foreground(frame_bgr: np.ndarray, outline: np.ndarray, tmap: TreeMap | None 
         col &= ol
     else:
         col = local_colour_test(img, ol, tmap.thr)
-    colour = col if s == 1.0 else cv2.resize(col.astype(np.uint8), (w, h), interpolation=cv2.INTER_NEAREST) > 0
-    colour = colour & outline
-    labels = np.where(ol, np.where(col, cv2.GC_PR_FGD, cv2.GC_PR_BGD), cv2.GC_BGD).astype(np.uint8)
+    pm = ratio_map(img, ol)
+    rat = np.zeros_like(ol) if pm is None else (pm > 0.5) & ol       # cut size
+    seeds, how = col, "graph cut"
+    if col.sum() < CONTAMINATED * rat.sum():
+        # the ring holds tree-coloured pixels (the outline crosses foliage, other trees beside it):
+        # the nearest-sample test loses what the ratio finds; seed the cut with both
+        seeds, how = col | rat, "graph cut (texture seeds)"
+
+    def full(m: np.ndarray) -> np.ndarray:
+        m = m if s == 1.0 else cv2.resize(m.astype(np.uint8), (w, h), interpolation=cv2.INTER_NEAREST) > 0
+        return m & outline
+
+    def result(m: np.ndarray, method: str) -> Foreground:
+        return Foreground(m, float(m.sum() / max(outline.sum(), 1)), method)
+
+    colour, ratio, seeded = full(col), full(rat), full(seeds)
+    labels = np.where(ol, np.where(seeds, cv2.GC_PR_FGD, cv2.GC_PR_BGD), cv2.GC_BGD).astype(np.uint8)
     if not (labels == cv2.GC_PR_FGD).any() or ol.all():
-        return Foreground(colour, float(colour.sum() / max(outline.sum(), 1)), "colour")
+        return result(seeded, "colour")
     bgd, fgd = np.zeros((1, 65), np.float64), np.zeros((1, 65), np.float64)
     cv2.setRNGSeed(GRABCUT_SEED)
     try:
         cv2.grabCut(np.ascontiguousarray(img), labels, None, bgd, fgd, ITERATIONS, cv2.GC_INIT_WITH_MASK)
     except cv2.error:                  # a degenerate mixture (e.g. one flat colour): the colour test
-        return Foreground(colour, float(colour.sum() / max(outline.sum(), 1)), "colour")
+        return result(seeded, "colour")
     cut = (labels == cv2.GC_FGD) | (labels == cv2.GC_PR_FGD)
     if s != 1.0:
         cut = cv2.resize(cut.astype(np.uint8), (w, h), interpolation=cv2.INTER_LINEAR) > 0
     mask = cut & outline
-    if mask.sum() > GROWTH_LIMIT * colour.sum():    # the cut grew into the sky (a sparse tree's twigs)
+    if mask.sum() > GROWTH_LIMIT * max(colour.sum(), ratio.sum()):
+        # the cut grew into the sky (a sparse tree's twigs): the whole ring's colour test, unless
+        # it lost most of what the ratio finds (a ring with tree colours in it: real crowns 0.00–0.06)
         glob = tmap.tree & outline
-        return Foreground(glob, float(glob.sum() / max(outline.sum(), 1)), "colour")
-    return Foreground(mask, float(mask.sum() / max(outline.sum(), 1)), "graph cut")
+        return result(ratio, "texture ratio") if glob.sum() < 0.5 * ratio.sum() else result(glob, "colour")
+    if mask.sum() < COLLAPSED * seeded.sum():       # the mixtures swallowed the crown: its seeds
+        return result(seeded, "colour" if seeds is col else "texture ratio")
+    return result(mask, how)
 
 
 def contour_segments(mask: np.ndarray) -> np.ndarray:

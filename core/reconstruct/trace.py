@@ -510,6 +510,11 @@ def traced_skeleton(tracks: Tracks, hier: Hierarchy, outline: Outline, maps: App
     if tree_mask is not None:
         tree = cv2.resize(np.asarray(tree_mask, np.uint8), mask.shape[::-1], interpolation=cv2.INTER_NEAREST) > 0
         tree &= mask
+        share = float(tree.sum()) / max(float(mask.sum()), 1.0)
+        if share < 0.05:
+            warnings.append(f"frame 1's tree pixels cover {share:.0%} of the outline: the skeleton is "
+                            "traced in the whole outline (draw the outline tighter round the tree)")
+            tree = mask
     hidden = hidden_trunk(tree, params.base_width, params.hidden_trunk, mask)
     bx, by = trunk_base(ridge, ev, mask) if hidden is None else hidden[:2]
     if hidden is not None:

@@ -178,7 +178,9 @@ def lk_forward_backward(prev: np.ndarray, cur: np.ndarray, pts: np.ndarray,
 
 def nan_median_rows(a: np.ndarray) -> np.ndarray:
     """Median over axis 1 of ``a (P, K, C)`` ignoring NaN (NaN where a row has none): a fast
-    ``np.nanmedian(a, axis=1)``."""
+    ``np.nanmedian(a, axis=1)``. ``K`` may be 0 (no neighbours): all NaN."""
+    if a.shape[1] == 0:
+        return np.full((a.shape[0], a.shape[2]), np.nan, a.dtype if a.dtype.kind == "f" else float)
     s = np.sort(a, axis=1)                          # NaN sorts last
     n = (~np.isnan(a)).sum(axis=1)                  # (P, C)
     lo = np.clip((n - 1) // 2, 0, a.shape[1] - 1)[:, None, :]
