@@ -166,3 +166,19 @@ def test_the_bark_material_ramp_is_centred_on_the_bark_colour():
     dark, light = (np.asarray(c[:3]) for c in materials.bark_ramp((0.5, 0.4, 0.3)))
     np.testing.assert_allclose(0.5 * (dark + light), albedo.srgb_to_linear(np.array([0.5, 0.4, 0.3])), rtol=1e-6)
     assert materials.bark_ramp(None) == materials.BARK_RAMP
+
+
+def test_foliage_brighter_than_any_leaf_is_scaled_into_the_foliage_band():
+    """Issue 31: a front-lit real crown against a grey sky came out at linear luminance 0.56 (a
+    grey sky taken for white set the exposure): a leaf is at most MAX_LUMINANCE (0.3). The colour
+    is scaled down to it, its chromaticity (hue, channel ratios in linear light) kept."""
+    from tree_from_video.core.detail import albedo
+    bright = np.array([[0.76, 0.80, 0.44], [0.70, 0.78, 0.40]])
+    out = albedo.leaf_colours(bright, "albedo", albedo.SceneLight())
+    assert out.source == "albedo"
+    lin = albedo.srgb_to_linear(out.colour)
+    assert abs(float(albedo.luminance(lin)) - albedo.MAX_LUMINANCE) < 0.01
+    src = albedo.srgb_to_linear(np.median(bright, 0))
+    assert np.allclose(lin / lin.sum(), src / src.sum(), atol=0.01)
+    lit = albedo.leaf_colours(np.array([[0.33, 0.46, 0.18]]), "albedo", albedo.SceneLight())
+    assert np.allclose(lit.colour, [0.33, 0.46, 0.18], atol=1e-6)      # inside the band: unchanged

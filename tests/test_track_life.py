@@ -264,3 +264,13 @@ def test_overlay_colours_each_node_by_its_confidence():
     assert at[2] == overlay.CONFIDENCE_COLOURS[0]        # 0.2: red
     assert at[1] == overlay.CONFIDENCE_COLOURS[1]        # 0.6: yellow
     assert at[3] == overlay.CONFIDENCE_COLOURS[2]        # 0.95: green
+
+
+def test_the_median_of_no_neighbours_is_nan_not_an_index_error():
+    """nan_median_rows over K = 0 neighbours (a refill when no track is alive: the WavingTrees clip
+    at 4 fps, issue 31, ended in IndexError there) is NaN; over K > 0 it is np.nanmedian's."""
+    assert np.isnan(trk.nan_median_rows(np.zeros((3, 0, 2)))).all()
+    assert trk.nan_median_rows(np.zeros((3, 0, 2))).shape == (3, 2)
+    a = np.array([[[1.0, 5.0], [np.nan, 7.0], [3.0, np.nan]], [[np.nan, np.nan], [np.nan, np.nan], [2.0, 4.0]]])
+    np.testing.assert_allclose(trk.nan_median_rows(a), [[2.0, 6.0], [2.0, 4.0]])
+

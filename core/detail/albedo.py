@@ -18,7 +18,8 @@ of the 3D tree need the colour of the leaf itself (its albedo), which is what a 
    the background ring's median luminance: a crown a tenth as bright as the sky beside it is
    seen against the light) or *grey* (HSV saturation below :data:`MIN_SATURATION`). Lit green
    foliage is 0.08–0.3 and a third of an overcast sky's luminance; a backlit crown 0.005–0.02,
-   a fortieth of it. An autumn maple passes and keeps its red.
+   a fortieth of it. An autumn maple passes and keeps its red. A colour brighter than any leaf
+   (above :data:`MAX_LUMINANCE`: a grey sky taken for white) is scaled down to it, hue kept.
 4. **Unreliable**: the albedo is a plausible foliage colour instead — the species' own when a
    species supplies one, else :data:`FOLIAGE_SRGB` — with each cluster's brightness relative to
    the median kept within ±:data:`SPREAD`, so the crown is not one flat colour.
@@ -49,6 +50,10 @@ NEUTRAL_RATIO = 1.25
 MIN_LUMINANCE = 0.02
 #: foliage darker than this share of the background ring's median luminance is seen against the light
 SILHOUETTE_RATIO = 0.1
+#: linear relative luminance above which a corrected foliage colour is brighter than any leaf (lit
+#: green foliage is 0.08–0.3): an exposure set for the crown against a grey sky darker than white
+#: (a real 1080p crown: 0.56). The colour is scaled down to it, its hue kept
+MAX_LUMINANCE = 0.3
 #: HSV saturation below which the corrected colour carries no hue worth keeping
 MIN_SATURATION = 0.15
 #: a plausible foliage albedo, sRGB 0..1 (green the largest channel; linear luminance 0.15)
@@ -190,7 +195,13 @@ def leaf_colours(sampled: np.ndarray, mode: str = "albedo", light: SceneLight | 
     faults = [w for w, bad in (("dark", lum < MIN_LUMINANCE), ("backlit", backlit),
                                ("grey", sat < MIN_SATURATION)) if bad]
     if not faults:
-        return LeafColour(corrected.astype(np.float32), med, "albedo", "the video's colour as albedo: " + facts)
+        if lum <= MAX_LUMINANCE:
+            return LeafColour(corrected.astype(np.float32), med, "albedo", "the video's colour as albedo: " + facts)
+        k = MAX_LUMINANCE / lum            # brighter than any leaf: darker, same chromaticity
+        dim = linear_to_srgb(srgb_to_linear(corrected) * k)
+        return LeafColour(dim.astype(np.float32), linear_to_srgb(srgb_to_linear(med) * k), "albedo",
+                          f"the video's colour as albedo, scaled to luminance {MAX_LUMINANCE} (brighter than any "
+                          "leaf: a grey sky set the exposure): " + facts)
     target = np.asarray(FOLIAGE_SRGB if fallback is None else fallback, np.float64)
     out = _spread(target, sampled)
     return LeafColour(out.astype(np.float32), np.median(out, 0), "foliage",

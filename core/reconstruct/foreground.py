@@ -206,7 +206,7 @@ def foreground(frame_bgr: np.ndarray, outline: np.ndarray, tmap: TreeMap | None 
     if s != 1.0:
         cut = cv2.resize(cut.astype(np.uint8), (w, h), interpolation=cv2.INTER_LINEAR) > 0
     mask = cut & outline
-    if mask.sum() > GROWTH_LIMIT * max(colour.sum(), ratio.sum()):
+    if mask.sum() > GROWTH_LIMIT * seeded.sum():
         # the cut grew into the sky (a sparse tree's twigs): the whole ring's colour test, unless
         # it lost most of what the ratio finds (a ring with tree colours in it: real crowns 0.00–0.06)
         glob = tmap.tree & outline
