@@ -192,7 +192,7 @@ def foreground(frame_bgr: np.ndarray, outline: np.ndarray, tmap: TreeMap | None 
     def result(m: np.ndarray, method: str) -> Foreground:
         return Foreground(m, float(m.sum() / max(outline.sum(), 1)), method)
 
-    colour, ratio, seeded = full(col), full(rat), full(seeds)
+    ratio, seeded = full(rat), full(seeds)
     labels = np.where(ol, np.where(seeds, cv2.GC_PR_FGD, cv2.GC_PR_BGD), cv2.GC_BGD).astype(np.uint8)
     if not (labels == cv2.GC_PR_FGD).any() or ol.all():
         return result(seeded, "colour")
