@@ -246,3 +246,21 @@ def test_clusters_sit_on_the_true_tufts(runs):
     off = np.median(c[near] - cent[1:][j[near]], axis=0)
     print(f"\n{near.sum()} of {len(c)} clusters by a tuft, median offset {off}")
     assert np.linalg.norm(off) < 1.0, off
+
+
+def test_a_binding_budget_is_spread_evenly_over_the_crown_not_where_corners_crowd():
+    """Issue 31: where the seeds outnumber max_clusters, a random choice follows the corners, which
+    crowd on a crown's textured parts (a real 1080p crown kept 0.33 of it bare). spread_evenly
+    keeps about n, one per grid cell: a half with ten times the corners gets about as many as
+    the other half, never more than n in all."""
+    from tree_from_video.core.detail.leaf_seeds import spread_evenly
+    rng = np.random.default_rng(0)
+    crowded = rng.uniform([0, 0], [100, 100], (5000, 2))
+    sparse = rng.uniform([100, 0], [200, 100], (500, 2))
+    pts = np.concatenate([crowded, sparse])
+    keep = spread_evenly(pts, 200, np.random.default_rng(1))
+    assert 180 <= len(keep) <= 200 and len(np.unique(keep)) == len(keep)
+    right = (pts[keep, 0] >= 100).sum()
+    assert 0.4 <= right / len(keep) <= 0.6, right
+    cells = np.unique(np.floor(pts[keep] / 7.0).astype(int), axis=0)
+    assert len(cells) >= 0.8 * len(keep)                   # spread out: few picks share a 7 px cell
