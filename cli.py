@@ -298,8 +298,14 @@ def settings_from_args(args) -> pipeline.Settings:
                         limb_species=args.limb_species)
 
 
+#: the folder of tree k (1-based) when the outline holds several trees
+TREE_FOLDER = "tree_{k}"
+
+
 def _reconstruct(args, gen) -> int:
-    """``VIDEO --outline ... --out DIR``: the reconstruction, its files and (with --generate) the trees."""
+    """``VIDEO --outline ... --out DIR``: the reconstruction, its files and (with --generate) the trees.
+    An outline of several trees (a .json of several polygons, a mask of several components) gives
+    one folder ``DIR/tree_<k>/`` per tree, from one decode and one tracking pass."""
     if not args.outline:
         raise InputError("give the tree's outline in frame 1 with --outline OUTLINE.json|MASK.png|auto")
     wanted, blender_files = _wanted(args)
@@ -308,40 +314,55 @@ def _reconstruct(args, gen) -> int:
         + (blender_files if gen is None else gb.planned_files(gen.req, blender_files, with_species=True))
     _check_leaf_image(args.leaf_image)
     settings = settings_from_args(args)
-    _check_out(args.out, names, args.force)
+    n_trees = pipeline.count_outlines(args.video, args.outline, args.scale)
+    if n_trees > 1 and gen is not None:
+        raise InputError(f"--generate grows trees of one reconstructed tree, and the outline holds {n_trees}; "
+                         "give one outline")
+    folders = [args.out] if n_trees == 1 else [os.path.join(args.out, TREE_FOLDER.format(k=k + 1))
+                                               for k in range(n_trees)]
+    for folder in folders:
+        _check_out(folder, names, args.force)
     outputs = _blender_outputs() if blender_files else None
     if outputs is not None:
         outputs.check_wanted(wanted)
     cb = _progress_printer(args.quiet)
-    res = pipeline.run(args.video, args.outline, settings, cb)
-    os.makedirs(args.out, exist_ok=True)
+    results = pipeline.run_all(args.video, args.outline, settings, cb)
+    base = os.path.splitext(os.path.basename(args.video))[0] or "Tree"
+    for k, (res, folder) in enumerate(zip(results, folders)):
+        name = f"Tree {base}" if n_trees == 1 else f"Tree {base} {k + 1}"
+        tree = _write_tree(args, res, settings, folder, name, outputs, wanted, gen is None, cb)
+    if gen is not None:
+        return _generate_from_tree(args, gen, tree, base, outputs, wanted)
+    return 0
+
+
+def _write_tree(args, res, settings, out: str, name: str, outputs, wanted, exports: bool, cb):
+    """Build one reconstructed tree's 3D model and write its files into ``out``; returns the tree."""
+    os.makedirs(out, exist_ok=True)
     for w in res.warnings:
         sys.stderr.write(f"warning: {w}\n")
     meta = {"video": os.path.abspath(args.video), "frames": [res.start, res.stop],
             "levels": args.levels, "scale": args.scale, "version": __version__}
-    skeleton_io.save_skeleton(os.path.join(args.out, "skeleton.npz"), res.skeleton, meta)
-    name = os.path.splitext(os.path.basename(args.video))[0] or "Tree"
-    tree = pipeline.build_3d(res, settings, name=f"Tree {name}", progress=cb)
+    skeleton_io.save_skeleton(os.path.join(out, "skeleton.npz"), res.skeleton, meta)
+    tree = pipeline.build_3d(res, settings, name=name, progress=cb)
     tree.meta.update(meta)
-    save_tree(os.path.join(args.out, "tree3d.npz"), tree)
+    save_tree(os.path.join(out, "tree3d.npz"), tree)
     if args.npz:
         arrays = skeleton_io.skeleton_arrays(res.skeleton, meta)
         arrays["nodes3d"] = tree.nodes3d[:, :res.skeleton.n_nodes]     # twigs are appended after
-        atomic_savez(os.path.join(args.out, "result.npz"), **arrays)
+        atomic_savez(os.path.join(out, "result.npz"), **arrays)
     overlay.write_overlays(res.info, res.start, res.skeleton, res.tracks,
-                           os.path.join(args.out, "overlay.png"),
-                           None if args.no_video else os.path.join(args.out, "overlay.mp4"), cb,
+                           os.path.join(out, "overlay.png"),
+                           None if args.no_video else os.path.join(out, "overlay.mp4"), cb,
                            res.foreground.mask if res.foreground is not None else None)
-    if outputs is not None and gen is None:          # with --generate the exports are per generated tree
-        outputs.write_outputs(tree, args.out, wanted, overwrite=args.force, leaf_image=args.leaf_image,
+    if outputs is not None and exports:              # with --generate the exports are per generated tree
+        outputs.write_outputs(tree, out, wanted, overwrite=args.force, leaf_image=args.leaf_image,
                               report=lambda m: sys.stderr.write(m + "\n"))
     conf = res.skeleton.confidence
     sure = "" if conf is None else f", {node_motion.confidence_summary(conf)}"
     sys.stderr.write(f"done: {res.skeleton.n_nodes} nodes, {res.tracks.n_tracks} tracks, "
-                     f"{res.tracks.n_frames} frames{sure} -> {args.out}\n")
-    if gen is not None:
-        return _generate_from_tree(args, gen, tree, name, outputs, wanted)
-    return 0
+                     f"{res.tracks.n_frames} frames{sure} -> {out}\n")
+    return tree
 
 
 def main(argv: list[str] | None = None) -> int:

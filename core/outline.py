@@ -38,8 +38,42 @@ def polygon_to_mask(polygon: np.ndarray, width: int, height: int) -> np.ndarray:
     return mask.astype(bool)
 
 
-def _read_polygon(path: str) -> np.ndarray:
+#: a mask component is a tree of its own when it is at least this share of the largest one's area
+#: (smaller ones are specks of the paint: with one tree they stay in its mask, as they always did)
+TREE_COMPONENT_SHARE = 0.1
+
+
+def _is_polygon_list(data) -> bool:
+    """Whether JSON ``data`` is a list of polygons (``[[[x, y], ...], ...]``) rather than one."""
+    return (isinstance(data, list) and len(data) > 0 and all(isinstance(p, list) for p in data)
+            and all(len(p) > 0 and isinstance(p[0], list) for p in data))
+
+
+def _read_polygons(path: str) -> list[np.ndarray]:
+    """The polygons of an outline .json: one (``[[x, y], ...]``, ``{"polygon": ...}``) or several
+    (``[[[x, y], ...], ...]``, ``{"polygons": [...]}``)."""
     data = read_json(path, f"outline '{path}'", "give a JSON list of [x, y] pixel points or a mask PNG")
+    if isinstance(data, dict) and "polygons" in data:
+        data = data["polygons"]
+    if _is_polygon_list(data):
+        return [_as_polygon(p, f"{path}, polygon {k + 1}") for k, p in enumerate(data)]
+    return [_read_polygon(path, data)]
+
+
+def _as_polygon(data, path: str) -> np.ndarray:
+    try:
+        poly = np.asarray(data, dtype=np.float64)
+    except (TypeError, ValueError):
+        poly = np.zeros((0,))
+    if poly.ndim != 2 or poly.shape[1] != 2 or not np.all(np.isfinite(poly)):
+        raise InputError(f"outline '{path}' does not hold a list of [x, y] points; "
+                         "write it as [[x1, y1], [x2, y2], ...] in pixels of frame 1")
+    return poly
+
+
+def _read_polygon(path: str, data=None) -> np.ndarray:
+    if data is None:
+        data = read_json(path, f"outline '{path}'", "give a JSON list of [x, y] pixel points or a mask PNG")
     if isinstance(data, dict):
         data = data.get("polygon", data.get("points"))
     try:
@@ -104,3 +138,28 @@ def load_outline(path: str | os.PathLike, width: int, height: int, scale: float 
         raise InputError(f"outline mask '{path}' is degenerate (area {int(mask.sum())} px²); "
                          "paint the whole tree white")
     return Outline(_mask_to_polygon(mask).astype(np.float32), mask)
+
+
+def load_outlines(path: str | os.PathLike, width: int, height: int, scale: float = 1.0) -> list[Outline]:
+    """The trees outlined in one file, for a ``width`` x ``height`` frame (after ``scale``): each
+    polygon of a .json holding several (``[[[x, y], ...], ...]`` or ``{"polygons": [...]}``), each
+    component of a mask image at least :data:`TREE_COMPONENT_SHARE` of the largest one's area, or
+    the one outline :func:`load_outline` reads. Raises :class:`InputError` as it does, naming the
+    polygon."""
+    path = os.fspath(path)
+    if not os.path.isfile(path):
+        raise InputError(f"outline '{path}' does not exist; give a polygon .json or a mask .png")
+    if path.lower().endswith(".json"):
+        polys = _read_polygons(path)
+        if len(polys) == 1:
+            return [load_outline(path, width, height, scale)]
+        return [polygon_outline(p * scale, width, height, f"outline '{path}', polygon {k + 1}")
+                for k, p in enumerate(polys)]
+    one = load_outline(path, width, height, scale)
+    n, labels, stats, _ = cv2.connectedComponentsWithStats(one.mask.astype(np.uint8), connectivity=8)
+    area = stats[1:, cv2.CC_STAT_AREA]
+    big = np.flatnonzero(area >= max(TREE_COMPONENT_SHARE * area.max(), MIN_AREA_PX)) + 1
+    if len(big) <= 1:
+        return [one]
+    big = big[np.argsort(stats[big, cv2.CC_STAT_LEFT], kind="stable")]      # left to right
+    return [Outline(_mask_to_polygon(labels == k).astype(np.float32), labels == k) for k in big]

@@ -32,16 +32,18 @@ from .reconstruct.run import (
     ReconstructSettings,
     Result,
     check_reconstruct,
+    count_outlines,
     frame_one,
     track_video,
 )
 from .reconstruct.run import run as run_2d
+from .reconstruct.run import run_all as run_2d_all
 from .reconstruct.tracks import detect_corners
 from .reconstruct.video import open_video, parse_frame_range
 from .tree3d import Tree3D, image_to_plane, pipe_radii, uneven_times
 
 __all__ = ["SKELETON_KINDS", "STAGE_COSTS_3D", "Result", "Settings", "add_leaves", "build_3d", "check_settings",
-           "clip_frames", "first_frame", "run", "share_2d", "track_video", "with_limbs"]
+           "clip_frames", "count_outlines", "first_frame", "run", "run_all", "share_2d", "track_video", "with_limbs"]
 
 #: Seconds a 3D stage takes ≈ fixed + per frame × frames ``(fixed s, s per frame)``, measured like
 #: :data:`.reconstruct.run.STAGE_COSTS_2D` (sample_videos/broad and sparse, 12–180 frames, wheel and
@@ -94,6 +96,16 @@ def run(video: str, outline_path, settings: Settings | None = None,
     s = settings or Settings()
     check_settings(s)
     return with_limbs(run_2d(video, outline_path, s, progress), s)
+
+
+def run_all(video: str, outline_path, settings: Settings | None = None,
+            progress: ProgressFn | None = None) -> list[Result]:
+    """:func:`run` for every tree the outline holds (a .json of several polygons, a mask of several
+    components; :func:`.reconstruct.run.run_all`): one decode and one tracking pass, one
+    :class:`Result` per tree in the outline's order."""
+    s = settings or Settings()
+    check_settings(s)
+    return [with_limbs(r, s) for r in run_2d_all(video, outline_path, s, progress)]
 
 
 def with_limbs(res: Result, s: Settings) -> Result:

@@ -15,9 +15,9 @@ import numpy as np
 
 from ..errors import InputError
 from ..forms import FORMS
-from ..outline import Outline, load_outline, polygon_outline
+from ..outline import Outline, load_outlines, polygon_outline
 from ..params import check, param
-from ..progress import ProgressFn, expected_seconds, report, stage_split
+from ..progress import ProgressFn, expected_seconds, report, stage_split, sub_progress
 from . import cache
 from .appearance import AppearanceAccumulator, AppearanceMaps
 from .foreground import Foreground, foreground
@@ -91,83 +91,142 @@ def check_reconstruct(s: ReconstructSettings) -> None:
 def track_video(info: VideoInfo, outline: Outline, start: int, stop: int, params: TrackParams,
                 progress: ProgressFn | None = None) -> tuple[Tracks, AppearanceMaps]:
     """One pass over frames ``start..stop-1``: tracks and appearance maps together."""
+    return track_videos(info, [outline], start, stop, params, progress)[0]
+
+
+def track_videos(info: VideoInfo, outlines: list[Outline], start: int, stop: int, params: TrackParams,
+                 progress: ProgressFn | None = None) -> list[tuple[Tracks, AppearanceMaps]]:
+    """One pass over frames ``start..stop-1`` for every tree of ``outlines``: each frame is decoded
+    once and fed to one tracker and one appearance accumulator per outline (the camera measured
+    on the background outside all of them)."""
     stamps: list[float] = []
     decoded = iter_frames(info, start, stop, stamps)
     first = next(decoded, None)
     if first is None:
         raise InputError(f"video '{info.path}' has no frame {start}; check --frames")
-    tracker = Tracker(first, outline, info.fps, start, params)
-    if len(tracker.raw) < 8:
-        decoded.close()
-        raise InputError(f"only {len(tracker.raw)} trackable corners inside the outline; "
-                         "outline the whole tree (leaves and trunk) in the first frame")
-    acc = AppearanceAccumulator(first, outline)
+    trees = np.logical_or.reduce([o.mask for o in outlines]) if len(outlines) > 1 else None
+    trackers = [Tracker(first, o, info.fps, start, params, trees) for o in outlines]
+    for k, tracker in enumerate(trackers):
+        if len(tracker.raw) < 8:
+            decoded.close()
+            which = f"outline {k + 1} of {len(outlines)}" if len(outlines) > 1 else "the outline"
+            raise InputError(f"only {len(tracker.raw)} trackable corners inside {which}; "
+                             "outline the whole tree (leaves and trunk) in the first frame")
+    accs = [AppearanceAccumulator(first, o) for o in outlines]
 
     prepared = [0]
 
     def prepare(frame: np.ndarray):
-        """In the decoding thread: the tracker's images, the appearance's small grey and, when
+        """In the decoding thread: each tracker's images, the appearance's small grey and, when
         due, the dense flow from frame 1 (at the frame's timestamp: the reader has appended it)."""
         prepared[0] += 1
-        images = tracker.prepare(frame)
         t = stamps[-1] - stamps[0] if len(stamps) > prepared[0] else np.nan
         t = t if np.isfinite(t) and t > 0 else prepared[0] / max(info.fps, 1e-3)
-        return images, acc.shrink(images[0]), tracker.flow.compute(images[1], float(t))
+        out = []
+        for tracker, acc in zip(trackers, accs):
+            images = tracker.prepare(frame)
+            out.append((images, acc.shrink(images[0]), tracker.flow.compute(images[1], float(t))))
+        return out
 
     total = stop - start
-    for k, (images, small, flow) in enumerate(prefetch(decoded, transform=prepare), start=1):
-        tracker.flow.add(k, flow)
+    for k, per_tree in enumerate(prefetch(decoded, transform=prepare), start=1):
         # the reader appends each frame's timestamp before handing it over; dt in units of the
         # clip's typical interval (median of the last 50), whatever its header says
         gaps = np.diff(stamps[max(0, k - 50):k + 1]) if len(stamps) > k else np.ones(1)
         dt = gaps[-1] / np.median(gaps) if np.median(gaps) > 0 else 1.0
-        tracker.feed(None, dt if np.isfinite(dt) and dt > 0 else 1.0, images)
-        acc.feed(None, tracker.camera[-1], small)
+        for tracker, acc, (images, small, flow) in zip(trackers, accs, per_tree):
+            tracker.flow.add(k, flow)
+            tracker.feed(None, dt if np.isfinite(dt) and dt > 0 else 1.0, images)
+            acc.feed(None, tracker.camera[-1], small)
         if k % 5 == 0:
             report(progress, "tracking", k / total)
-    tracks = tracker.result()
-    tracks.times, tracks.fps, note = frame_times(stamps[:tracks.n_frames], info.fps)
-    if note:
-        tracks.warnings.append(note)
-    return tracks, acc.maps()
+    out = []
+    for tracker, acc in zip(trackers, accs):
+        tracks = tracker.result()
+        tracks.times, tracks.fps, note = frame_times(stamps[:tracks.n_frames], info.fps)
+        if note:
+            tracks.warnings.append(note)
+        out.append((tracks, acc.maps()))
+    return out
+
+
+def read_outlines(info: VideoInfo, start: int, outline_path, scale: float) -> list[Outline]:
+    """The trees' outlines of ``outline_path`` (see :func:`run_all`) for the video ``info``."""
+    if isinstance(outline_path, str) and outline_path == "auto":
+        from .auto_outline import auto_outline
+        return [auto_outline(info, start)]
+    if isinstance(outline_path, (str, os.PathLike)):
+        return load_outlines(outline_path, info.width, info.height, scale)
+    arr = outline_path if isinstance(outline_path, list) else [outline_path]
+    return [polygon_outline(np.asarray(p, float) * scale, info.width, info.height,
+                            "the outline" if len(arr) == 1 else f"outline {k + 1}") for k, p in enumerate(arr)]
+
+
+def count_outlines(video: str, outline_path, scale: float = 1.0) -> int:
+    """How many trees ``outline_path`` outlines (1 for ``"auto"``), read before any work is done
+    (the batch checks each tree's output folder first). Raises InputError as :func:`run_all`."""
+    if isinstance(outline_path, str) and outline_path == "auto":
+        return 1
+    return len(read_outlines(open_video(video, scale), 0, outline_path, scale))
 
 
 def run(video: str, outline_path, settings: ReconstructSettings | None = None,
         progress: ProgressFn | None = None) -> Result:
-    """Video + outline → tracks, hierarchy and moving 2D skeleton. Raises InputError on bad input.
+    """Video + outline → tracks, hierarchy and moving 2D skeleton of one tree (:func:`run_all`,
+    whose outline must hold one tree). Raises InputError on bad input."""
+    results = run_all(video, outline_path, settings, progress, one=True)
+    return results[0]
 
-    ``outline_path``: a polygon .json or mask image path, ``"auto"`` (what sways in the first
-    seconds, :mod:`.auto_outline`), or a polygon ``(M, 2)`` array in pixels of the original video
-    (e.g. from a Blender Mask)."""
+
+def run_all(video: str, outline_path, settings: ReconstructSettings | None = None,
+            progress: ProgressFn | None = None, one: bool = False) -> list[Result]:
+    """Video + outlines → one :class:`Result` per tree, from one decode and one tracking pass.
+    Raises InputError on bad input (with ``one``, also for an outline of several trees).
+
+    ``outline_path``: a polygon .json (one polygon, or a list of them: one tree each) or mask image
+    path (each large component a tree), ``"auto"`` (what sways in the first seconds,
+    :mod:`.auto_outline`), a polygon ``(M, 2)`` array in pixels of the original video (e.g. from a
+    Blender Mask) or a list of them."""
     s = settings or ReconstructSettings()
     check_reconstruct(s)
     info = open_video(video, s.scale)
     start, stop = parse_frame_range(s.frames, info.frame_count)
-    if isinstance(outline_path, str) and outline_path == "auto":
-        from .auto_outline import auto_outline
-        outline = auto_outline(info, start)
-    elif isinstance(outline_path, (str, os.PathLike)):
-        outline = load_outline(outline_path, info.width, info.height, s.scale)
-    else:
-        outline = polygon_outline(np.asarray(outline_path, float) * s.scale, info.width, info.height)
-    parts = stage_split(progress, expected_seconds(STAGE_COSTS_2D, stop - start))
+    outlines = read_outlines(info, start, outline_path, s.scale)
+    if one and len(outlines) > 1:
+        raise InputError(f"the outline holds {len(outlines)} trees; reconstruct one at a time, or all of "
+                         "them with the batch (one folder per tree)")
+    n = len(outlines)
+    costs = expected_seconds(STAGE_COSTS_2D, stop - start)
+    parts = stage_split(progress, {k: v * (n if k != "tracking" else 1) for k, v in costs.items()})
     cached = key = None
-    if s.cache_dir:
-        key = cache.stage_key(video, outline.mask, start, stop, s.scale, s.track, s.levels)
+    if s.cache_dir and n == 1:
+        key = cache.stage_key(video, outlines[0].mask, start, stop, s.scale, s.track, s.levels)
         cached = cache.load(s.cache_dir, key)
     if cached is not None:
-        tracks, maps, hier = cached
+        per_tree = [cached[:2]]
+        hiers = [cached[2]]
         report(parts["hierarchy"], "tracking (cached)", 1.0)
     else:
-        tracks, maps = track_video(info, outline, start, stop, s.track, parts["tracking"])
-        hier = build_hierarchy(tracks, HierarchyParams(levels=s.levels), parts["hierarchy"])
+        per_tree = track_videos(info, outlines, start, stop, s.track, parts["tracking"])
+        hiers = [build_hierarchy(t, HierarchyParams(levels=s.levels), sub_progress(parts["hierarchy"], k / n, (k + 1) / n))
+                 for k, (t, _) in enumerate(per_tree)]
         if key is not None and s.cache_dir:
             try:
-                cache.save(s.cache_dir, key, tracks, maps, hier)
+                cache.save(s.cache_dir, key, per_tree[0][0], per_tree[0][1], hiers[0])
             except OSError:
                 pass                # a cache that cannot be written only costs time
+    frame = frame_one(info, start, outlines[0].mask.shape)
+    results = []
+    for k, (outline, (tracks, maps), hier) in enumerate(zip(outlines, per_tree, hiers)):
+        sub = {st: sub_progress(parts[st], k / n, (k + 1) / n) for st in ("foreground", "skeleton")}
+        results.append(_one_tree(info, outline, start, stop, tracks, maps, hier, frame, s, sub))
+    return results
+
+
+def _one_tree(info: VideoInfo, outline: Outline, start: int, stop: int, tracks: Tracks, maps: AppearanceMaps,
+              hier: Hierarchy, frame: np.ndarray | None, s: ReconstructSettings, parts: dict) -> Result:
+    """Frame 1's foreground, the form and the moving 2D skeleton of one tree."""
     report(parts["foreground"], "foreground", 0.0)
-    frame = frame_one(info, start, outline.mask.shape)
     fg = foreground(frame, outline.mask) if frame is not None else None
     report(parts["foreground"], "foreground", 1.0)
     if s.form == "auto":

@@ -268,7 +268,9 @@ class Tracker:
     """Streaming tracker: ``Tracker(frame0, outline)``, then ``feed(frame)`` per frame, ``result()``."""
 
     def __init__(self, frame0: np.ndarray, outline: Outline, fps: float, start: int = 0,
-                 params: TrackParams | None = None):
+                 params: TrackParams | None = None, trees: np.ndarray | None = None):
+        """``trees (H, W)`` bool frame px: every tree of the shot (default the outline's), kept out of
+        the background the camera is measured on (the other trees sway too)."""
         self.params = params or TrackParams()
         x0, y0, x1, y1 = outline.bbox
         self.crown = float(max(x1 - x0, y1 - y0))
@@ -292,7 +294,11 @@ class Tracker:
         self.camera = [np.array([[1.0, 0, 0], [0, 1.0, 0]])]
         full = frame0 if frame0.ndim == 2 else cv2.cvtColor(frame0, cv2.COLOR_BGR2GRAY)
         self.intensity = self._sample(full, pts)
-        self.cam = CameraEstimator(gray, mask, self.params) if self.params.stabilize else None
+        not_bg = mask
+        if trees is not None:
+            not_bg = mask | (cv2.resize(np.asarray(trees, np.uint8), (gray.shape[1], gray.shape[0]),
+                                        interpolation=cv2.INTER_NEAREST) > 0)
+        self.cam = CameraEstimator(gray, not_bg, self.params) if self.params.stabilize else None
         self.alive = np.ones(len(pts), bool)
         self.n_initial = len(pts)                    # frame 1's tracks: columns never reused
         self._live_neighbours()
