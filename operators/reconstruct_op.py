@@ -93,8 +93,9 @@ def inputs_from(props):
     info = open_video(video)               # raises a clear InputError for missing/unreadable files
     if props.outline_source == "AUTO":
         return video, "auto"
-    if props.outline_source == "ANNOTATION":
-        return video, annotation.video_annotation_polygon(video, int(info.width), int(info.height))
+    if props.outline_source == "ANNOTATION":        # one tree per closed stroke
+        polys = annotation.video_annotation_polygons(video, int(info.width), int(info.height))
+        return video, (polys[0] if len(polys) == 1 else polys)
     if props.outline_source == "MASK":
         if props.outline_mask is None:
             raise InputError("no outline mask chosen; draw a Mask around the tree and pick it in the Outline panel")
@@ -126,18 +127,29 @@ def why_not(props) -> str | None:
     return None
 
 
+def tree_names(name: str, n: int) -> list[str]:
+    """The collection of each of ``n`` trees one outline holds: ``name``, or ``name 1``, ``name 2``…
+    (a file of several polygons, a mask of several components, several closed annotation strokes)."""
+    return [name] if n == 1 else [f"{name} {k + 1}" for k in range(n)]
+
+
 def make_work(video, outline, settings: pipeline.Settings, name: str):
-    """The worker's function: skeleton, lift and motion (pure core, no bpy)."""
+    """The worker's function: skeleton, lift and motion (pure core, no bpy) of every tree the
+    outline holds: ``[(Result, Tree3D), ...]`` named by :func:`tree_names`."""
     from ..core.progress import sub_progress
+    names = tree_names(name, pipeline.count_outlines(video, outline, settings.scale))
 
     def work(progress):
         # the 2D stages get their share of the expected time (pipeline.STAGE_COSTS_2D and _3D: ≈ 72 %
         # at 180 frames, 76 % at 555, since the motion solve is one sparse solve a frame), so the bar
         # moves evenly
         split = pipeline.share_2d(pipeline.clip_frames(video, settings))
-        res = pipeline.run(video, outline, settings, sub_progress(progress, 0.0, split))
-        tree = pipeline.build_3d(res, settings, name=name, progress=sub_progress(progress, split, 1.0))
-        return res, tree
+        results = pipeline.run_all(video, outline, settings, sub_progress(progress, 0.0, split))
+        n = len(results)
+        return [(res, pipeline.build_3d(res, settings, name=nm,
+                                        progress=sub_progress(progress, split + (1 - split) * k / n,
+                                                              split + (1 - split) * (k + 1) / n)))
+                for k, (res, nm) in enumerate(zip(results, names))]
     return work
 
 
@@ -157,8 +169,9 @@ class TREE_OT_reconstruct(jobs.JobOperator, bpy.types.Operator):
         props = context.scene.tree_video
         video, outline = inputs_from(props)
         name = props.collection_name.strip() or "Tree from Video"
-        if bpy.data.collections.get(name) is not None and not props.replace_existing:
-            raise InputError(f"a collection named '{name}' exists; tick Replace Existing or change the name")
+        for each in tree_names(name, pipeline.count_outlines(video, outline)):
+            if bpy.data.collections.get(each) is not None and not props.replace_existing:
+                raise InputError(f"a collection named '{each}' exists; tick Replace Existing or change the name")
         if props.build_leaves and props.leaf_image and not os.path.isfile(bpy.path.abspath(props.leaf_image)):
             raise InputError(f"leaf image '{props.leaf_image}' does not exist; pick an image file or clear the field "
                              "for the procedural leaf")
@@ -166,13 +179,19 @@ class TREE_OT_reconstruct(jobs.JobOperator, bpy.types.Operator):
 
     def done(self, context, result):
         props = context.scene.tree_video
-        res, tree = result
+        for res, tree in result:
+            if self._build(context, props, res, tree) is None:
+                return {"CANCELLED"}
+        return {"FINISHED"}
+
+    def _build(self, context, props, res, tree):
+        """One reconstructed tree into its collection; None (reported) when it cannot be built."""
         try:
             built = build_tree(context, tree, tree.name, replace=props.replace_existing, mesh=props.build_mesh,
                                leaf_image=bpy.path.abspath(props.leaf_image) if props.leaf_image else None)
         except InputError as exc:
             self.report({"ERROR"}, str(exc))
-            return {"CANCELLED"}
+            return None
         stored.store_tree(built["collection"], tree, res.info.path)     # Save Species, Generate: any tree, any time
         clip_overlay.store(res, built["collection"])
         props.leaf_polygons = built["leaf_polygons"]
@@ -182,7 +201,7 @@ class TREE_OT_reconstruct(jobs.JobOperator, bpy.types.Operator):
         leaves = f", {built['leaf_polygons']:,} leaf polygons" if built["leaf_polygons"] else ""
         self.report({"INFO"}, f"{len(built['armature'].data.bones)} bones × {tree.n_frames} frames in "
                               f"'{tree.name}'{leaves}; {motion_summary(res)}")
-        return {"FINISHED"}
+        return built
 
 
 def motion_summary(res) -> str:

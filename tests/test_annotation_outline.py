@@ -145,3 +145,40 @@ def test_reconstruct_with_annotation_outline(addon):
     assert result == {"FINISHED"}, err
     rig = next(o for o in bpy.data.collections["Annotated"].objects if o.type == "ARMATURE")
     assert len(rig.data.bones) > 50
+
+
+class _Points(list):
+    """Stand-in for a stroke's points (Python cannot add strokes): ``co`` read by foreach_get."""
+
+    def foreach_get(self, attr, out):
+        out[:] = np.asarray([p.co for p in self], float).ravel()
+
+
+class _Layers(list):
+    active = property(lambda self: self[0])
+
+
+def _fake_clip(strokes_px, w=W, h=H):
+    """A clip-shaped stand-in whose active layer's frame 1 holds ``strokes_px`` (pixel polylines)."""
+    from types import SimpleNamespace as NS
+    strokes = [NS(points=_Points([NS(co=(x / w, 1.0 - y / h, 0.0)) for x, y in s])) for s in strokes_px]
+    layer = NS(info="Note", frames=[NS(frame_number=1, strokes=strokes)])
+    return NS(name="fake", frame_start=1, grease_pencil=NS(layers=_Layers([layer])))
+
+
+def _loop(cx, cy, r, n=40, gap=0):
+    t = np.linspace(0, 2 * np.pi, n, endpoint=False)[: n - gap]
+    return np.stack([cx + r * np.cos(t), cy + r * np.sin(t)], 1)
+
+
+def test_one_tree_per_closed_stroke_and_ticks_are_no_trees():
+    """Issue 31: two closed strokes round two trees are two outlines (left to right); a tick, a
+    small closed doodle or an open arc beside one outline leave it the only one, as before; the
+    single-outline reader still takes the longest stroke."""
+    both = [_loop(360, 180, 80), _loop(120, 180, 90)]
+    two = annotation.annotation_polygons(_fake_clip(both), W, H)
+    assert len(two) == 2 and two[0][:, 0].mean() < two[1][:, 0].mean()
+    one = annotation.annotation_polygons(_fake_clip([_loop(200, 180, 100), [(10, 10), (30, 30), (50, 20)],
+                                                     _loop(420, 60, 10), _loop(420, 250, 60, gap=20)]), W, H)
+    assert len(one) == 1 and np.allclose(one[0], _loop(200, 180, 100), atol=1e-3)
+    assert annotation.annotation_polygon(_fake_clip(both), W, H)[:, 0].mean() < 240      # the longer, left one

@@ -52,6 +52,27 @@ def test_reconstruct_builds_the_tree(addon):
     assert len([c for c in bpy.data.collections if c.name.startswith("Oak")]) == 1
 
 
+def test_an_outline_of_two_trees_builds_two_collections(addon, tmp_path):
+    """Issue 31: a file of two polygons (here the broad tree's outline and a box round the fence
+    and house beside it, which sway nothing: their tracks stand still) reconstructs both, one
+    collection each, ``Oak 1`` and ``Oak 2``; a second run is refused for either name."""
+    import json
+    poly = json.load(open(OUTLINE))["polygon"]
+    path = tmp_path / "two.json"
+    path.write_text(json.dumps([poly, [[340, 200], [470, 200], [470, 330], [340, 330]]]))
+    addon.video_path, addon.outline_path = VIDEO, str(path)
+    addon.use_frame_range, addon.frame_start, addon.frame_end = True, 0, 12
+    addon.collection_name = "Oak"
+    result, err = _run_op()
+    assert result == {"FINISHED"}, err
+    for name in ("Oak 1", "Oak 2"):
+        rig = next(o for o in bpy.data.collections[name].objects if o.type == "ARMATURE")
+        assert len(rig.data.bones) > 5
+    assert "Oak" not in bpy.data.collections
+    before = _ids()
+    assert _run_op()[0] == {"CANCELLED"} and _ids() == before
+
+
 @pytest.mark.parametrize("case", ["no video", "missing video", "no outline", "outline outside", "empty mask"])
 def test_bad_input_is_reported_and_changes_nothing(addon, case, tmp_path):
     addon.video_path, addon.outline_path = VIDEO, OUTLINE

@@ -10,13 +10,14 @@ import sys
 import cv2
 import numpy as np
 import pytest
-from groundtruth import score
-from samples import committed, load_truth
 
 from tree_from_video.core import pipeline
 from tree_from_video.core.errors import InputError
 from tree_from_video.core.outline import load_outlines
 from tree_from_video.core.reconstruct import run as run_mod
+
+from groundtruth import score
+from samples import committed, load_truth
 
 pytestmark = [pytest.mark.bpy53]
 
@@ -117,3 +118,13 @@ def test_the_batch_writes_one_folder_per_tree_and_refuses_generate(two_trees, tm
         assert (out / f"tree_{k}" / "tree3d.npz").exists()
     p = subprocess.run(cmd[:-1] + ["--generate", "2", "--force"], capture_output=True, text=True)
     assert p.returncode == 2 and "holds 2" in p.stderr and "Traceback" not in p.stderr
+
+
+def test_a_list_of_points_is_one_polygon_and_a_list_of_polygons_several(two_trees):
+    from tree_from_video.core.reconstruct.run import count_outlines
+    video = two_trees[0]
+    sq = [[10, 10], [200, 10], [200, 300], [10, 300]]
+    assert count_outlines(video, sq) == 1
+    assert count_outlines(video, np.array(sq, float)) == 1
+    assert count_outlines(video, [np.array(sq, float), np.array(sq, float) + [400, 0]]) == 2
+    assert count_outlines(video, two_trees[1]) == 2

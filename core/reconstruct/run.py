@@ -157,7 +157,9 @@ def read_outlines(info: VideoInfo, start: int, outline_path, scale: float) -> li
         return [auto_outline(info, start)]
     if isinstance(outline_path, (str, os.PathLike)):
         return load_outlines(outline_path, info.width, info.height, scale)
-    arr = outline_path if isinstance(outline_path, list) else [outline_path]
+    several = isinstance(outline_path, (list, tuple)) and len(outline_path) > 0 \
+        and all(np.ndim(p) == 2 for p in outline_path)             # a list of polygons, not of points
+    arr = list(outline_path) if several else [outline_path]
     return [polygon_outline(np.asarray(p, float) * scale, info.width, info.height,
                             "the outline" if len(arr) == 1 else f"outline {k + 1}") for k, p in enumerate(arr)]
 

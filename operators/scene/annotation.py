@@ -68,11 +68,17 @@ def _stroke_px(stroke, width: int, height: int) -> np.ndarray:
     return np.stack([co[:, 0] * width, (1.0 - co[:, 1]) * height], axis=1)
 
 
-def annotation_polygon(clip, width: int, height: int) -> np.ndarray:
-    """Pixel polygon ``(M, 2)`` (x right, y down) of the outline drawn on ``clip``: of the active
-    annotation layer, the drawing shown on the clip's frame 1 (the layer's last frame at or before
-    scene frame ``clip.frame_start``), its longest stroke with 3 or more points. Raises InputError
-    naming the problem and the fix."""
+#: a stroke is closed when its ends are at most this share of its bounding box's diagonal apart
+CLOSED_GAP = 0.2
+#: a closed stroke outlines a tree of its own when at least this share of the longest stroke's length
+TREE_STROKE_SHARE = 0.25
+
+
+def _strokes(clip, width: int, height: int) -> list[np.ndarray]:
+    """Pixel polylines ``(M, 2)`` (x right, y down) of the strokes of 3 or more points drawn on
+    ``clip``'s frame 1 on the active annotation layer (the layer's last frame at or before scene
+    frame ``clip.frame_start``), placed on the image. Raises InputError naming the problem and
+    the fix when there is none."""
     ann = clip_annotation(clip)
     if ann is None or len(ann.layers) == 0:
         raise _problem("No annotation on the clip yet",
@@ -85,7 +91,7 @@ def annotation_polygon(clip, width: int, height: int) -> np.ndarray:
                        f"annotation layer '{layer.info}' of clip '{clip.name}' has nothing drawn on the clip's "
                        f"frame 1 (scene frame {first}); go to that frame and {DRAW}")
     frame = max(frames, key=lambda f: f.frame_number)
-    best, best_len, n_strokes, n_view = None, 0.0, 0, 0
+    found, n_strokes, n_view = [], 0, 0
     for stroke in frame.strokes:
         n_strokes += 1
         if len(stroke.points) < 3:
@@ -94,20 +100,45 @@ def annotation_polygon(clip, width: int, height: int) -> np.ndarray:
         if np.abs(px / (width, height) - 0.5).max() > 1.0:      # percent of the region: placed on the view
             n_view += 1
             continue
-        length = float(np.linalg.norm(np.diff(px, axis=0), axis=1).sum())
-        if best is None or length > best_len:
-            best, best_len = px, length
-    if best is None and n_view:
+        found.append(px)
+    if not found and n_view:
         raise _problem("Stroke stuck to the view, not the image",
                        f"the annotation on clip '{clip.name}' was drawn with Stroke Placement 'View' (it does not "
                        "follow the image); set Stroke Placement to 'Image' in the clip editor's toolbar "
                        "(Annotation tab), erase the stroke and draw it again")
-    if best is None:
+    if not found:
         what = "no stroke" if n_strokes == 0 else f"{n_strokes} stroke(s), each with fewer than 3 points"
         raise _problem("No stroke of 3+ points on frame 1",
                        f"annotation layer '{layer.info}' of clip '{clip.name}' has {what} on the clip's frame 1 "
                        f"(scene frame {frame.frame_number}); {HOW}")
-    return best
+    return found
+
+
+def _length(px: np.ndarray) -> float:
+    return float(np.linalg.norm(np.diff(px, axis=0), axis=1).sum())
+
+
+def annotation_polygon(clip, width: int, height: int) -> np.ndarray:
+    """Pixel polygon ``(M, 2)`` (x right, y down) of the outline drawn on ``clip``: of the active
+    annotation layer, the drawing shown on the clip's frame 1 (the layer's last frame at or before
+    scene frame ``clip.frame_start``), its longest stroke with 3 or more points. Raises InputError
+    naming the problem and the fix."""
+    return max(_strokes(clip, width, height), key=_length)
+
+
+def annotation_polygons(clip, width: int, height: int) -> list[np.ndarray]:
+    """The trees outlined on ``clip``'s frame 1 (issue 31: several trees in one shot): each closed
+    stroke (ends at most :data:`CLOSED_GAP` of its box's diagonal apart) at least
+    :data:`TREE_STROKE_SHARE` of the longest one's length, left to right; where fewer than two are,
+    the longest stroke alone (:func:`annotation_polygon`: a tick or an open scribble beside the
+    outline is no tree)."""
+    found = _strokes(clip, width, height)
+    longest = max(_length(px) for px in found)
+    trees = [px for px in found if _length(px) >= TREE_STROKE_SHARE * longest
+             and np.linalg.norm(px[0] - px[-1]) <= CLOSED_GAP * float(np.linalg.norm(np.ptp(px, axis=0)))]
+    if len(trees) < 2:
+        return [max(found, key=_length)]
+    return sorted(trees, key=lambda px: float(px[:, 0].mean()))
 
 
 def video_annotation_polygon(video_path: str, width: int, height: int) -> np.ndarray:
@@ -120,6 +151,14 @@ def video_annotation_polygon(video_path: str, width: int, height: int) -> np.nda
     return annotation_polygon(clip, width, height)
 
 
+def video_annotation_polygons(video_path: str, width: int, height: int) -> list[np.ndarray]:
+    """:func:`annotation_polygons` of the clip opened for ``video_path``."""
+    clip = clip_for_video(video_path)
+    if clip is None:
+        video_annotation_polygon(video_path, width, height)         # raises: no clip open
+    return annotation_polygons(clip, width, height)
+
+
 def status(video_path: str) -> tuple[bool, str]:
     """(usable, one short line) for the Outline panel."""
     clip = clip_for_video(video_path)
@@ -127,10 +166,12 @@ def status(video_path: str) -> tuple[bool, str]:
         if clip is None:
             video_annotation_polygon(video_path, 1, 1)
         size = clip.size
-        poly = annotation_polygon(clip, int(size[0]) or 1, int(size[1]) or 1)
+        polys = annotation_polygons(clip, int(size[0]) or 1, int(size[1]) or 1)
     except InputError as exc:
         return False, getattr(exc, "short", str(exc))
-    return True, f"Stroke of {len(poly)} points on '{clip.name}'"
+    if len(polys) > 1:
+        return True, f"{len(polys)} trees outlined on '{clip.name}'"
+    return True, f"Stroke of {len(polys[0])} points on '{clip.name}'"
 
 
 def show_annotation_tools(area) -> None:
