@@ -13,6 +13,7 @@ import numpy as np
 
 from .detail.albedo import SceneLight, bark_colour, hidden_bark, scene_light, trunk_pixels
 from .detail.branch_mesh import MeshParams, check_params
+from .detail.fronds import fit_fronds
 from .detail.leaf_clusters import LeafParams, as_fronds, check_leaf_params
 from .detail.leaf_seeds import place_leaves
 from .detail.twigs import TwigParams, add_twigs, check_twig_params
@@ -193,8 +194,11 @@ def build_3d(res: Result, s: Settings | None = None, name: str = "Tree",
         meta["bark_colour"] = (hidden_bark() if sk.hidden_trunk else bark_colour(frame, trunk, tree_px, light)).meta("albedo")
     tree = add_twigs(tree, s.twigs, parts["details"], tree_px)  # after the motion solve, before the leaves
     tree = add_leaves(res, tree, s, frame, tree_px, fg.mask if fg is not None else None, light)
-    if res.form == "palm":                      # a palm's leaflets line its fronds
-        tree.leaves = as_fronds(tree, tree.leaves)
+    if res.form == "palm":                      # a palm's leaflets line its fronds, as wide as frame 1 shows
+        tree.leaves, note = fit_fronds(as_fronds(tree, tree.leaves), np.asarray(tree.meta["base_px"], float),
+                                       float(tree.meta.get("metres_per_px", 1.0)), fg.mask if fg is not None else None)
+        if note:
+            tree.meta.update({"fronds": note})
     return tree
 
 

@@ -1,4 +1,6 @@
 """Leaf seeds: the dark/bright split against known leaves, and their 3D placement."""
+import dataclasses
+
 import cv2
 import numpy as np
 import pytest
@@ -264,3 +266,26 @@ def test_a_binding_budget_is_spread_evenly_over_the_crown_not_where_corners_crow
     assert 0.4 <= right / len(keep) <= 0.6, right
     cells = np.unique(np.floor(pts[keep] / 7.0).astype(int), axis=0)
     assert len(cells) >= 0.8 * len(keep)                   # spread out: few picks share a 7 px cell
+
+
+def test_a_palms_leaflets_reach_as_far_as_frame_one_shows_its_fronds():
+    """Issue 31: fronds 2 × 12 px wide in frame 1 (a band round each midrib) get leaflets long
+    enough to reach 12 px to each side: leaf_size · REACH = 12 px × metres per px; stretches off
+    the foreground do not count; the crown's middle, where fronds overlap, neither."""
+    from tree_from_video.core.detail.fronds import REACH, fit_fronds
+    from tree_from_video.core.tree3d import LeafClusters
+    scale, base = 0.01, np.array([100.0, 190.0])
+    fg = np.zeros((200, 400), bool)
+    fg[40:65, 100:380] = True                       # a frond 25 px wide (half-width 12 px), level
+    fg[20:120, 80:160] = True                       # the crown's middle: one mass
+    xs = np.linspace(110, 370, 14)
+    px = np.stack([xs, np.full_like(xs, 52.0)], 1)
+    pos = np.stack([(px[:, 0] - base[0]) * scale, np.zeros(len(px)), (base[1] - px[:, 1]) * scale], 1)
+    n = len(px)
+    leaves = LeafClusters(np.ones(n, np.int32), pos.astype(np.float32), np.tile([1.0, 0, 0], (n, 1)).astype(np.float32),
+                          np.full((n, 3), 0.4, np.float32), np.zeros(n, bool), np.zeros((1, n), np.float32),
+                          radius=0.1, leaf_size=0.05, cards=16, shape="frond")
+    fitted, note = fit_fronds(leaves, base, scale, fg)
+    assert fitted.leaf_size * REACH == pytest.approx(12.0 * scale, rel=0.1), note
+    assert fit_fronds(leaves, base, scale, None)[0] is leaves                      # no foreground: as it was
+    assert fit_fronds(dataclasses.replace(leaves, shape="cluster"), base, scale, fg)[0].leaf_size == 0.05
