@@ -9,7 +9,8 @@ clips.json names when auto picks another), then per run:
 - ``motion``: the median correlation of the moving 2D skeleton with the dense-flow reference
   (``tests/motion_metrics.py``, issue 18's recipe) over the 30 nodes that move most;
 - ``form`` picked, ``nodes``, ``clusters``, seconds of the batch process and ``x decode`` (the
-  batch's seconds over one ``cv2.VideoCapture`` read loop of the clip).
+  batch's seconds over one ``cv2.VideoCapture`` read loop of the clip); ``palm?`` whether the run
+  suggested choosing Palm (``core/reconstruct/form.py`` ``palm_hint``).
 
 With ``--pictures DIR`` each run leaves ``<key>_<form>.png``: frame 1, the render on grey, and
 where render and mask agree (green), the crown it misses (red), the render outside it (blue).
@@ -118,7 +119,7 @@ def main() -> int:
         print(f"error: no clip of benchmarks/real_footage/clips.json in {args.clips}", file=sys.stderr)
         return 2
     print(f"{'clip':<12} {'kind':<8} {'asked':<9} {'form':<9} {'IoU':>5} {'cover':>5} {'motion':>6} "
-          f"{'nodes':>5} {'clust':>5} {'s':>6} {'x dec':>5}  warnings")
+          f"{'nodes':>5} {'clust':>5} {'s':>6} {'x dec':>5} {'palm?':>5}  warnings")
     with tempfile.TemporaryDirectory() as tmp:
         for clip in clips:
             dec = decode_seconds(clip.video)
@@ -140,7 +141,8 @@ def main() -> int:
                 corr = motion(clip, out)
                 n_cl = tree.leaves.count if tree.leaves is not None else 0
                 print(f"{clip.key:<12} {clip.kind:<8} {form:<9} {picked:<9} {iou:>5.2f} {cover:>5.2f} {corr:>6.2f} "
-                      f"{tree.n_nodes:>5} {n_cl:>5} {sec:>6.1f} {sec / max(dec, 1e-6):>5.1f}  {len(warns)}",
+                      f"{tree.n_nodes:>5} {n_cl:>5} {sec:>6.1f} {sec / max(dec, 1e-6):>5.1f} "
+                      f"{'yes' if any('Form: Palm' in w for w in warns) else '-':>5}  {len(warns)}",
                       flush=True)
                 if args.pictures:
                     os.makedirs(args.pictures, exist_ok=True)

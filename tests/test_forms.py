@@ -211,3 +211,32 @@ def test_frond_leaflets_line_the_bone_in_level_pairs(tmp_path):
     assert np.ptp(m[:, 0]) > 0.8 and np.ptp(m[:, 2]) < 0.5 * np.ptp(m[:, 1]) + 0.2      # level, along x
     save_tree(tmp_path / "palm.npz", tree)
     assert load_tree(tmp_path / "palm.npz").leaves.shape == "frond"
+
+
+def test_a_crown_of_long_strokes_suggests_palm_and_a_leafy_one_does_not():
+    """Issue 31: frame 1's texture coherence (structure tensor) tells a palm's leaflets (long
+    parallel strokes) from leaves (texture with no direction); it only suggests Palm, since bare
+    branches are strokes too. Hand cases: strokes radiating from a crown top against leaf blobs."""
+    import cv2
+    from tree_from_video.core.reconstruct.form import STROKES, palm_hint, texture_coherence
+    rng = np.random.default_rng(0)
+    h, w = 240, 320
+    fronds = np.full((h, w, 3), 200, np.uint8)
+    for a in np.linspace(0, 2 * np.pi, 14, endpoint=False):          # fronds round the top
+        d = np.array([np.cos(a), np.sin(a)])
+        for t in np.arange(10, 110, 3.0):                           # leaflets off the midrib
+            p = np.array([160, 120]) + t * d
+            for side in (-1, 1):
+                q = p + 18 * (np.array([-d[1], d[0]]) * side + 0.6 * d)
+                cv2.line(fronds, tuple(int(v) for v in p), tuple(int(v) for v in q), (40, 120, 60), 1)
+    leaves = np.full((h, w, 3), 200, np.uint8)
+    for _ in range(2500):
+        c = (int(rng.integers(40, 280)), int(rng.integers(20, 220)))
+        cv2.ellipse(leaves, c, (4, 3), float(rng.uniform(0, 180)), 0, 360, tuple(int(v) for v in rng.integers(20, 140, 3)), -1)
+    def tree_px(img):                                               # the foreground: what is not sky
+        return cv2.dilate((img != 200).any(2).astype(np.uint8), np.ones((3, 3), np.uint8)) > 0
+    c_f, c_l = texture_coherence(fronds, tree_px(fronds)), texture_coherence(leaves, tree_px(leaves))
+    print(f"\ncoherence: fronds {c_f:.2f}, leaves {c_l:.2f}")
+    assert c_f >= STROKES + 0.05 and c_l <= STROKES - 0.1
+    assert "choose Form: Palm" in palm_hint(fronds, tree_px(fronds))
+    assert palm_hint(leaves, tree_px(leaves)) is None and palm_hint(None, tree_px(leaves)) is None

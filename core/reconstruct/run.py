@@ -21,7 +21,7 @@ from ..progress import ProgressFn, expected_seconds, report, stage_split, sub_pr
 from . import cache
 from .appearance import AppearanceAccumulator, AppearanceMaps
 from .foreground import Foreground, foreground
-from .form import detect_form
+from .form import detect_form, palm_hint
 from .hierarchy import Hierarchy, HierarchyParams, build_hierarchy
 from .node_motion import confidence_warning
 from .skeleton2d import FOLD_ALPHA, Skeleton2D, paper_skeleton
@@ -231,8 +231,10 @@ def _one_tree(info: VideoInfo, outline: Outline, start: int, stop: int, tracks: 
     report(parts["foreground"], "foreground", 0.0)
     fg = foreground(frame, outline.mask) if frame is not None else None
     report(parts["foreground"], "foreground", 1.0)
+    hint = None
     if s.form == "auto":
         form, why = detect_form(outline.mask)
+        hint = palm_hint(frame, None if fg is None else fg.mask) if form == "broadleaf" else None
     else:
         form, why = s.form, "chosen"
     sk_prog = parts["skeleton"]
@@ -241,8 +243,9 @@ def _one_tree(info: VideoInfo, outline: Outline, start: int, stop: int, tracks: 
     else:
         skel = traced_skeleton(tracks, hier, outline, maps, s.trace, sk_prog, None if fg is None else fg.mask, form)
     note = confidence_warning(skel.confidence) if skel.confidence is not None else None
-    if note:
-        skel.warnings.append(note)
+    for line in (note, hint):
+        if line:
+            skel.warnings.append(line)
     return Result(info, outline, start, stop, tracks, hier, maps, skel, fg, form, why)
 
 
