@@ -218,6 +218,7 @@ def test_a_crown_of_long_strokes_suggests_palm_and_a_leafy_one_does_not():
     parallel strokes) from leaves (texture with no direction); it only suggests Palm, since bare
     branches are strokes too. Hand cases: strokes radiating from a crown top against leaf blobs."""
     import cv2
+
     from tree_from_video.core.reconstruct.form import STROKES, palm_hint, texture_coherence
     rng = np.random.default_rng(0)
     h, w = 240, 320
