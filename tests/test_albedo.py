@@ -182,3 +182,17 @@ def test_foliage_brighter_than_any_leaf_is_scaled_into_the_foliage_band():
     assert np.allclose(lin / lin.sum(), src / src.sum(), atol=0.01)
     lit = albedo.leaf_colours(np.array([[0.33, 0.46, 0.18]]), "albedo", albedo.SceneLight())
     assert np.allclose(lit.colour, [0.33, 0.46, 0.18], atol=1e-6)      # inside the band: unchanged
+
+
+def test_grey_clusters_in_a_green_crown_take_the_crowns_colour():
+    """A tenth of a real crown's clusters sampled white (sky through a gap, a glint): they took the
+    leaf texture's tint to near white. A cluster whose corrected colour is grey in a coloured crown
+    takes the crown's colour at its own brightness (within ±SPREAD of the median's)."""
+    from tree_from_video.core.detail import albedo
+    rng = np.random.default_rng(0)
+    green = np.clip(np.array([0.30, 0.45, 0.18]) * rng.uniform(0.8, 1.2, (40, 1)), 0, 1)
+    white = np.full((5, 3), 0.95)
+    out = albedo.leaf_colours(np.concatenate([green, white]), "albedo", albedo.SceneLight())
+    sat = albedo.saturation(out.colours)
+    assert sat.min() >= albedo.MIN_SATURATION
+    np.testing.assert_allclose(out.colours[:40], green, atol=1e-6)          # the green ones kept

@@ -195,6 +195,12 @@ def leaf_colours(sampled: np.ndarray, mode: str = "albedo", light: SceneLight | 
     faults = [w for w, bad in (("dark", lum < MIN_LUMINANCE), ("backlit", backlit),
                                ("grey", sat < MIN_SATURATION)) if bad]
     if not faults:
+        # a grey cluster in a coloured crown sampled sky through a gap or a glint, not a leaf: the
+        # crown's colour at its own brightness (a real 1080p crown: a tenth of its clusters white)
+        grey = saturation(corrected) < MIN_SATURATION
+        if grey.any():
+            corrected = corrected.copy()
+            corrected[grey] = _spread(med, corrected)[grey]
         if lum <= MAX_LUMINANCE:
             return LeafColour(corrected.astype(np.float32), med, "albedo", "the video's colour as albedo: " + facts)
         k = MAX_LUMINANCE / lum            # brighter than any leaf: darker, same chromaticity
