@@ -76,14 +76,7 @@ def _read_polygon(path: str, data=None) -> np.ndarray:
         data = read_json(path, f"outline '{path}'", "give a JSON list of [x, y] pixel points or a mask PNG")
     if isinstance(data, dict):
         data = data.get("polygon", data.get("points"))
-    try:
-        poly = np.asarray(data, dtype=np.float64)
-    except (TypeError, ValueError):
-        poly = np.zeros((0,))
-    if poly.ndim != 2 or poly.shape[1] != 2 or not np.all(np.isfinite(poly)):
-        raise InputError(f"outline '{path}' does not hold a list of [x, y] points; "
-                         "write it as [[x1, y1], [x2, y2], ...] in pixels of frame 1")
-    return poly
+    return _as_polygon(data, path)
 
 
 def _mask_to_polygon(mask: np.ndarray) -> np.ndarray:

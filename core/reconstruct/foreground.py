@@ -132,25 +132,6 @@ def ratio_map(img: np.ndarray, outline: np.ndarray) -> np.ndarray | None:
     return cv2.GaussianBlur(p, (0, 0), RATIO_MAP_SIGMA)
 
 
-def ratio_foreground(frame_bgr: np.ndarray, outline: np.ndarray) -> Foreground | None:
-    """The tree's pixels of frame 1 by :func:`ratio_map` > 0.5 (computed at the cut's size, at
-    most :data:`MAX_SIDE` px, and scaled back); None without a ring."""
-    outline = np.asarray(outline, bool)
-    h, w = outline.shape
-    s = min(1.0, MAX_SIDE / max(h, w))
-    small = (max(1, round(w * s)), max(1, round(h * s)))
-    img = frame_bgr if s == 1.0 else cv2.resize(frame_bgr, small, interpolation=cv2.INTER_AREA)
-    ol = outline if s == 1.0 else cv2.resize(outline.astype(np.uint8), small, interpolation=cv2.INTER_NEAREST) > 0
-    p = ratio_map(img, ol)
-    if p is None:
-        return None
-    m = (p > 0.5) & ol
-    if s != 1.0:
-        m = cv2.resize(m.astype(np.uint8), (w, h), interpolation=cv2.INTER_LINEAR) > 0
-    m &= outline
-    return Foreground(m, float(m.sum() / max(outline.sum(), 1)), "texture ratio")
-
-
 def foreground(frame_bgr: np.ndarray, outline: np.ndarray, tmap: TreeMap | None = None) -> Foreground | None:
     """The tree's pixels in frame 1 (BGR uint8 ``(H, W, 3)``) inside ``outline (H, W)`` bool, see
     the module docstring; ``tmap`` the colour test if already computed. None when the outline
