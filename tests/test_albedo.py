@@ -196,3 +196,23 @@ def test_grey_clusters_in_a_green_crown_take_the_crowns_colour():
     sat = albedo.saturation(out.colours)
     assert sat.min() >= albedo.MIN_SATURATION
     np.testing.assert_allclose(out.colours[:40], green, atol=1e-6)          # the green ones kept
+
+
+def test_bark_that_is_no_bark_colour_takes_the_default():
+    """Issue 31: an oak at dusk (a purple sky) came out with teal bark (albedo 0.005, 0.32, 0.45):
+    bark is brown (hue 0-70 deg) or grey (saturation < 0.25); anything else is the scene's light and
+    the bark takes the default. A brown and a grey trunk keep their colour. Hue on hand cases."""
+    import colorsys
+    assert albedo.bark_hue(np.array([1.0, 0.0, 0.0])) == pytest.approx(0.0)
+    assert albedo.bark_hue(np.array([0.0, 1.0, 1.0])) == pytest.approx(180.0)
+    for c in ([0.3, 0.6, 0.2], [0.1, 0.5, 0.9], [0.45, 0.3, 0.15]):
+        assert albedo.bark_hue(np.array(c)) == pytest.approx(360 * colorsys.rgb_to_hsv(*c)[0], abs=1e-6)
+    frame = np.zeros((40, 40, 3), np.uint8)
+    trunk = np.zeros((40, 40), bool)
+    trunk[5:35, 15:25] = True
+    for bgr, default in (((115, 82, 1), True), ((40, 70, 110), False), ((100, 104, 108), False)):
+        frame[:] = bgr
+        out = albedo.bark_colour(frame, trunk, None, albedo.SceneLight())
+        assert (out.source == "default") == default, (bgr, out.why)
+        if default:
+            np.testing.assert_allclose(out.colour, albedo.BARK_SRGB)

@@ -223,6 +223,10 @@ TRUNK_SHARE = 0.5
 #: bark is darker than foliage (lit bark 0.04–0.1 of linear luminance, a seventh to a fifteenth of
 #: the sky beside it; a backlit trunk 0.002–0.01): its own dark and silhouette limits
 BARK_MIN_LUMINANCE = 0.01
+#: bark is brown to grey: its hue (HSV, degrees) within this range, or its saturation below
+#: BARK_GREY; a teal or violet "bark" is the scene's coloured light (a dusk sky taken for white)
+BARK_HUES = (0.0, 70.0)
+BARK_GREY = 0.25
 BARK_SILHOUETTE_RATIO = 0.03
 
 
@@ -248,6 +252,21 @@ def trunk_pixels(shape: tuple[int, int], parents: np.ndarray, nodes_px: np.ndarr
                 rows = np.flatnonzero(below.any(1))
                 return below & (np.arange(shape[0]) >= 0.5 * (rows[0] + rows[-1]))[:, None]
     return tube
+
+
+def bark_hue(srgb: np.ndarray) -> float:
+    """HSV hue of an sRGB ``(3,)`` colour in degrees 0..360 (red 0, yellow 60, green 120, cyan 180)."""
+    r, g, b = (float(c) for c in np.asarray(srgb, np.float64))
+    mx, mn = max(r, g, b), min(r, g, b)
+    if mx - mn < 1e-9:
+        return 0.0
+    if mx == r:
+        h = ((g - b) / (mx - mn)) % 6.0
+    elif mx == g:
+        h = (b - r) / (mx - mn) + 2.0
+    else:
+        h = (r - g) / (mx - mn) + 4.0
+    return 60.0 * h
 
 
 def hidden_bark() -> LeafColour:
@@ -280,4 +299,10 @@ def bark_colour(frame_bgr: np.ndarray, trunk: np.ndarray, tree_px: np.ndarray | 
     if lum < BARK_MIN_LUMINANCE or backlit:
         return LeafColour(BARK_SRGB[None].astype(np.float32), BARK_SRGB.copy(), "default",
                           "a dark or backlit trunk in the video, a plausible bark colour instead: " + facts)
+    hue = bark_hue(col)
+    if float(saturation(col)) >= BARK_GREY and not BARK_HUES[0] <= hue <= BARK_HUES[1]:
+        return LeafColour(BARK_SRGB[None].astype(np.float32), BARK_SRGB.copy(), "default",
+                          f"the trunk's corrected colour has hue {hue:.0f} deg and saturation {float(saturation(col)):.2f}, "
+                          f"no bark's (brown {BARK_HUES[0]:.0f}-{BARK_HUES[1]:.0f} deg, or grey below {BARK_GREY}): "
+                          "coloured light; a plausible bark colour instead: " + facts)
     return LeafColour(col[None].astype(np.float32), col, "albedo", "the trunk's colour as albedo: " + facts)
