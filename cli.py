@@ -314,7 +314,7 @@ def _reconstruct(args, gen) -> int:
         + (blender_files if gen is None else gb.planned_files(gen.req, blender_files, with_species=True))
     _check_leaf_image(args.leaf_image)
     settings = settings_from_args(args)
-    n_trees = pipeline.count_outlines(args.video, args.outline, args.scale)
+    n_trees = pipeline.count_outlines(args.video, args.outline, settings.scale, settings.frames)
     if n_trees > 1 and gen is not None:
         raise InputError(f"--generate grows trees of one reconstructed tree, and the outline holds {n_trees}; "
                          "give one outline")

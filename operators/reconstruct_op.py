@@ -137,7 +137,6 @@ def make_work(video, outline, settings: pipeline.Settings, name: str):
     """The worker's function: skeleton, lift and motion (pure core, no bpy) of every tree the
     outline holds: ``[(Result, Tree3D), ...]`` named by :func:`tree_names`."""
     from ..core.progress import sub_progress
-    names = tree_names(name, pipeline.count_outlines(video, outline, settings.scale))
 
     def work(progress):
         # the 2D stages get their share of the expected time (pipeline.STAGE_COSTS_2D and _3D: ≈ 72 %
@@ -146,6 +145,7 @@ def make_work(video, outline, settings: pipeline.Settings, name: str):
         split = pipeline.share_2d(pipeline.clip_frames(video, settings))
         results = pipeline.run_all(video, outline, settings, sub_progress(progress, 0.0, split))
         n = len(results)
+        names = tree_names(name, n)
         return [(res, pipeline.build_3d(res, settings, name=nm,
                                         progress=sub_progress(progress, split + (1 - split) * k / n,
                                                               split + (1 - split) * (k + 1) / n)))
@@ -169,7 +169,9 @@ class TREE_OT_reconstruct(jobs.JobOperator, bpy.types.Operator):
         props = context.scene.tree_video
         video, outline = inputs_from(props)
         name = props.collection_name.strip() or "Tree from Video"
-        for each in tree_names(name, pipeline.count_outlines(video, outline)):
+        # "auto" finds its trees in the worker (seconds of video); a file or a drawing is counted now
+        n = 1 if isinstance(outline, str) and outline == "auto" else pipeline.count_outlines(video, outline)
+        for each in tree_names(name, n):
             if bpy.data.collections.get(each) is not None and not props.replace_existing:
                 raise InputError(f"a collection named '{each}' exists; tick Replace Existing or change the name")
         if props.build_leaves and props.leaf_image and not os.path.isfile(bpy.path.abspath(props.leaf_image)):
@@ -179,6 +181,10 @@ class TREE_OT_reconstruct(jobs.JobOperator, bpy.types.Operator):
 
     def done(self, context, result):
         props = context.scene.tree_video
+        taken = [t.name for _, t in result if bpy.data.collections.get(t.name) is not None]
+        if taken and not props.replace_existing:        # "auto" found more trees than were counted
+            self.report({"ERROR"}, f"a collection named '{taken[0]}' exists; tick Replace Existing or change the name")
+            return {"CANCELLED"}
         for res, tree in result:
             if self._build(context, props, res, tree) is None:
                 return {"CANCELLED"}

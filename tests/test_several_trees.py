@@ -128,3 +128,18 @@ def test_a_list_of_points_is_one_polygon_and_a_list_of_polygons_several(two_tree
     assert count_outlines(video, np.array(sq, float)) == 1
     assert count_outlines(video, [np.array(sq, float), np.array(sq, float) + [400, 0]]) == 2
     assert count_outlines(video, two_trees[1]) == 2
+
+
+def test_auto_outline_finds_two_trees_that_stand_apart(two_trees):
+    """``--outline auto`` on the side-by-side clip: two outlines, left to right, each holding its
+    own tree's frame-1 nodes and none of the other's (trees that stand apart are never joined)."""
+    from tree_from_video.core.reconstruct.run import count_outlines, read_outlines
+    from tree_from_video.core.reconstruct.video import open_video
+    video, _, truths = two_trees
+    assert count_outlines(video, "auto") == 2
+    outs = read_outlines(open_video(video), 0, "auto", 1.0)
+    for k, truth in enumerate(truths):
+        p = np.round(truth["nodes2d"][0]).astype(int)
+        inside = [o.mask[p[:, 1].clip(0, 359), p[:, 0].clip(0, 959)].mean() for o in outs]
+        print(f"\ntree {k + 1}: share of its true nodes in outline 1, 2: {inside[0]:.2f}, {inside[1]:.2f}")
+        assert inside[k] >= 0.8 and inside[1 - k] == 0.0

@@ -3,8 +3,10 @@
 Harris corners of the whole first frame are tracked (forward–backward LK) over the first
 seconds; the camera's own motion is removed by a RANSAC affine fitted to all tracks (most of the
 frame is static); corners whose residual motion clearly exceeds the tracker noise are "moving".
-Their frame-1 positions are grown into a region (closing, the largest connected component, holes
-filled), whose contour is the outline polygon. No bpy.
+Their frame-1 positions are grown into a region (closing, connected components, holes filled),
+whose contour is the outline polygon: of the largest component (:func:`auto_outline`), or of every
+component at least :data:`TREE_SHARE` of its area, one tree each (:func:`auto_outlines`: trees that
+stand apart are never joined into one skeleton). No bpy.
 """
 from __future__ import annotations
 
@@ -17,11 +19,34 @@ from ..progress import ProgressFn, report
 from .tracks import apply_affine, lk_forward_backward
 from .video import VideoInfo, iter_frames
 
+#: a swaying region is a tree of its own when at least this share of the largest one's area (a bush
+#: or a few leaves of a tree at the frame's edge are less)
+TREE_SHARE = 0.25
+#: the outlines found, per (video, size, start): the batch counts them before the run that uses them
+_FOUND: dict[tuple, list[Outline]] = {}
+
 
 def auto_outline(info: VideoInfo, start: int = 0, seconds: float = 10.0, max_corners: int = 4000,
                  progress: ProgressFn | None = None) -> Outline:
-    """Outline of the swaying tree from frames ``start`` .. ``start + seconds·fps`` (px of the
-    scaled video). Raises :class:`InputError` when nothing in the clip moves."""
+    """Outline of the swaying tree (the largest swaying region) from frames ``start`` ..
+    ``start + seconds·fps`` (px of the scaled video). Raises :class:`InputError` when nothing in
+    the clip moves."""
+    return max(auto_outlines(info, start, seconds, max_corners, progress), key=lambda o: int(o.mask.sum()))
+
+
+def auto_outlines(info: VideoInfo, start: int = 0, seconds: float = 10.0, max_corners: int = 4000,
+                  progress: ProgressFn | None = None) -> list[Outline]:
+    """One outline per swaying region at least :data:`TREE_SHARE` of the largest one's area, left
+    to right (see :func:`auto_outline`); found once per video, size and start."""
+    key = (info.path, info.width, info.height, start, seconds, max_corners)
+    if key not in _FOUND:
+        _FOUND.clear()                              # one clip at a time: the last one's outlines
+        _FOUND[key] = _find(info, start, seconds, max_corners, progress)
+    return list(_FOUND[key])
+
+
+def _find(info: VideoInfo, start: int, seconds: float, max_corners: int,
+          progress: ProgressFn | None) -> list[Outline]:
     n = max(int(round(seconds * info.fps)), 8)
     frames = iter_frames(info, start, min(start + n, info.frame_count))
     first = next(frames, None)
@@ -72,9 +97,13 @@ def auto_outline(info: VideoInfo, start: int = 0, seconds: float = 10.0, max_cor
     nlab, lab, stats, _ = cv2.connectedComponentsWithStats(mask)
     if nlab < 2:
         raise InputError("could not find the tree's region; draw the outline instead")
-    big = 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
-    region = (lab == big).astype(np.uint8)
-    contours, _ = cv2.findContours(region, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
-    contour = max(contours, key=cv2.contourArea)
-    poly = cv2.approxPolyDP(contour, 0.005 * cv2.arcLength(contour, True), True).reshape(-1, 2).astype(np.float32)
-    return Outline(poly, polygon_to_mask(poly, w, h))
+    area = stats[1:, cv2.CC_STAT_AREA]
+    trees = 1 + np.flatnonzero(area >= TREE_SHARE * area.max())
+    trees = trees[np.argsort(stats[trees, cv2.CC_STAT_LEFT], kind="stable")]
+    out = []
+    for k in trees:
+        contours, _ = cv2.findContours((lab == k).astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+        contour = max(contours, key=cv2.contourArea)
+        poly = cv2.approxPolyDP(contour, 0.005 * cv2.arcLength(contour, True), True).reshape(-1, 2).astype(np.float32)
+        out.append(Outline(poly, polygon_to_mask(poly, w, h)))
+    return out

@@ -152,9 +152,9 @@ def track_videos(info: VideoInfo, outlines: list[Outline], start: int, stop: int
 
 def read_outlines(info: VideoInfo, start: int, outline_path, scale: float) -> list[Outline]:
     """The trees' outlines of ``outline_path`` (see :func:`run_all`) for the video ``info``."""
-    if isinstance(outline_path, str) and outline_path == "auto":
-        from .auto_outline import auto_outline
-        return [auto_outline(info, start)]
+    if isinstance(outline_path, str) and outline_path == "auto":   # every tree that stands apart
+        from .auto_outline import auto_outlines
+        return auto_outlines(info, start)
     if isinstance(outline_path, (str, os.PathLike)):
         return load_outlines(outline_path, info.width, info.height, scale)
     several = isinstance(outline_path, (list, tuple)) and len(outline_path) > 0 \
@@ -164,12 +164,13 @@ def read_outlines(info: VideoInfo, start: int, outline_path, scale: float) -> li
                             "the outline" if len(arr) == 1 else f"outline {k + 1}") for k, p in enumerate(arr)]
 
 
-def count_outlines(video: str, outline_path, scale: float = 1.0) -> int:
-    """How many trees ``outline_path`` outlines (1 for ``"auto"``), read before any work is done
-    (the batch checks each tree's output folder first). Raises InputError as :func:`run_all`."""
-    if isinstance(outline_path, str) and outline_path == "auto":
-        return 1
-    return len(read_outlines(open_video(video, scale), 0, outline_path, scale))
+def count_outlines(video: str, outline_path, scale: float = 1.0, frames: str | None = None) -> int:
+    """How many trees ``outline_path`` outlines in the clip's range ``frames`` ("A:B"), read before
+    the work (the batch checks each tree's output folder first; ``"auto"`` finds its outlines
+    once, and :func:`run_all` takes them from there). Raises InputError as :func:`run_all`."""
+    info = open_video(video, scale)
+    start, _ = parse_frame_range(frames, info.frame_count)
+    return len(read_outlines(info, start, outline_path, scale))
 
 
 def run(video: str, outline_path, settings: ReconstructSettings | None = None,
