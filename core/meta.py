@@ -49,7 +49,7 @@ class TreeMeta(TypedDict, total=False):
     # details (detail.twigs.add_twigs, detail.leaf_seeds.place_leaves)
     twigs: dict[str, Any]
     leaf_colour: dict[str, Any]
-    fronds: str
+    fronds: dict[str, Any]
     bark_colour: dict[str, Any]
     # a generated tree (generate.growth.grow_tree)
     species: str
@@ -105,7 +105,7 @@ KEYS: dict[str, Key] = {
                        "the bark's colour: the trunk's pixels in frame 1 as albedo, or a default bark"),
     "leaf_colour": Key("{mode, colour sRGB [3], source, why}", ("leaf_seeds.place_leaves",),
                        "the leaves' colour: the mode asked, the median colour used and how it was decided"),
-    "fronds": Key("sentence", ("pipeline.build_3d",),
+    "fronds": Key("{width_px, leaf_size_m, was_m, why}", ("pipeline.build_3d",),
                   "a palm's frond width in frame 1 and the leaflet length it gave (detail.fronds.fit_fronds)"),
     "species": Key("name", ("growth.grow_tree",), "species the tree was grown from"),
     "seed": Key("int", ("growth.grow_tree",), "growth seed"),

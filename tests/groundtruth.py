@@ -12,12 +12,14 @@ from scipy.spatial import cKDTree
 
 
 @lru_cache(maxsize=None)
-def true_labels(variant: str, seed: int | None = None, frames: int | None = None) -> np.ndarray:
+def true_labels(variant: str, seed: int | None = None, frames: int | None = None,
+                width: int | None = None, height: int | None = None) -> np.ndarray:
     """``(H, W)`` label image of a sample variant's frame 1 (``synth_tree.LABEL_BRANCH`` /
-    ``LABEL_LEAF``; rendered once per session), of its preset or of ``seed`` / ``frames``. Read
-    only."""
+    ``LABEL_LEAF``; rendered once per session), of its preset or of ``seed`` / ``frames`` /
+    ``width`` / ``height``. Read only."""
     from tree_from_video.sample_videos import synth_tree
-    lab = synth_tree.render_labels(synth_tree.build_scene(synth_tree.config_for(variant, seed=seed, frames=frames)), 0)
+    cfg = synth_tree.config_for(variant, seed=seed, frames=frames, width=width, height=height)
+    lab = synth_tree.render_labels(synth_tree.build_scene(cfg), 0)
     lab.setflags(write=False)
     return lab
 

@@ -40,7 +40,8 @@ def render_silhouette(tree, path: str) -> np.ndarray:
     return img[..., 3] > 127
 
 
-def true_mask(variant: str, seed: int | None = None, frames: int | None = None) -> np.ndarray:
+def true_mask(variant: str, seed: int | None = None, frames: int | None = None,
+              width: int | None = None, height: int | None = None) -> np.ndarray:
     """``(H, W)`` bool: the true tree (branches and leaves) in frame 1 of a sample variant."""
-    lab = true_labels(variant, seed, frames)
+    lab = true_labels(variant, seed, frames, width, height)
     return (lab == synth_tree.LABEL_BRANCH) | (lab == synth_tree.LABEL_LEAF)

@@ -287,5 +287,6 @@ def test_a_palms_leaflets_reach_as_far_as_frame_one_shows_its_fronds():
                           radius=0.1, leaf_size=0.05, cards=16, shape="frond")
     fitted, note = fit_fronds(leaves, base, scale, fg)
     assert fitted.leaf_size * REACH == pytest.approx(12.0 * scale, rel=0.1), note
+    assert note["width_px"] == pytest.approx(24.0, abs=2.5) and note["was_m"] == 0.05
     assert fit_fronds(leaves, base, scale, None)[0] is leaves                      # no foreground: as it was
     assert fit_fronds(dataclasses.replace(leaves, shape="cluster"), base, scale, fg)[0].leaf_size == 0.05

@@ -44,12 +44,13 @@ def frond_half_width_px(leaves: LeafClusters, base_px: np.ndarray, scale: float,
 
 
 def fit_fronds(leaves: LeafClusters | None, base_px: np.ndarray, scale: float,
-               foreground: np.ndarray | None) -> tuple[LeafClusters | None, str | None]:
+               foreground: np.ndarray | None) -> tuple[LeafClusters | None, dict | None]:
     """``leaves`` (shape ``"frond"``) with ``leaf_size`` set so a leaflet reaches the median
     half-width frame 1 shows (:func:`frond_half_width_px`) over the outer half of the stretches
     on the foreground,
-    within :data:`LIMITS` of its own, and a note saying so; unchanged (note None) without a
-    foreground or fronds."""
+    within :data:`LIMITS` of its own, and what was measured (``width_px`` the fronds' median width
+    in frame 1, ``leaf_size_m`` and ``was_m`` the leaflets' length after and before, ``why``);
+    unchanged (None) without a foreground or fronds."""
     if leaves is None or foreground is None or leaves.shape != "frond" or leaves.count == 0:
         return leaves, None
     hw = frond_half_width_px(leaves, base_px, scale, foreground)
@@ -62,6 +63,7 @@ def fit_fronds(leaves: LeafClusters | None, base_px: np.ndarray, scale: float,
         return leaves, None
     want = float(np.median(hw)) * scale / REACH
     size = float(np.clip(want, LIMITS[0] * leaves.leaf_size, LIMITS[1] * leaves.leaf_size))
-    note = (f"fronds {2 * float(np.median(hw)):.0f} px wide in frame 1: leaflets {size:.2f} m long "
-            f"(were {leaves.leaf_size:.2f} m)")
+    width = 2 * float(np.median(hw))
+    note = {"width_px": round(width, 1), "leaf_size_m": round(size, 4), "was_m": round(float(leaves.leaf_size), 4),
+            "why": f"fronds {width:.0f} px wide in frame 1: leaflets {size:.2f} m long (were {leaves.leaf_size:.2f} m)"}
     return dataclasses.replace(leaves, leaf_size=size), note
