@@ -89,9 +89,11 @@ def local_colour_test(img: np.ndarray, outline: np.ndarray, thr: float, k: int =
     iy, ix = np.nonzero(outline)
     _, idx = cKDTree(ring_xy).query(np.stack([ix, iy], 1).astype(np.float64), k=min(k, len(ring_xy)))
     n = max(1, 2_000_000 // max(k, 1))                  # chunks of n pixels: (n, k, 3) floats at a time
+    px_lab = lab[iy, ix]
     for a in range(0, len(iy), n):
-        d = np.linalg.norm(ring_lab[idx[a:a + n]] - lab[iy[a:a + n], ix[a:a + n]][:, None], axis=2)
-        out[iy[a:a + n], ix[a:a + n]] = d.min(1) > thr
+        diff = ring_lab[idx[a:a + n]] - px_lab[a:a + n, None]
+        d2 = np.einsum("pkc,pkc->pk", diff, diff)       # squared distances: no square root per pair
+        out[iy[a:a + n], ix[a:a + n]] = d2.min(1) > thr * thr
     return out
 
 
