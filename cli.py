@@ -328,23 +328,23 @@ def _reconstruct(args, gen) -> int:
     cb = _progress_printer(args.quiet)
     results = pipeline.run_all(args.video, args.outline, settings, cb)
     base = os.path.splitext(os.path.basename(args.video))[0] or "Tree"
-    for k, (res, folder) in enumerate(zip(results, folders)):
-        name = f"Tree {base}" if n_trees == 1 else f"Tree {base} {k + 1}"
-        tree = _write_tree(args, res, settings, folder, name, outputs, wanted, gen is None, cb)
+    names = [f"Tree {base}"] if n_trees == 1 else [f"Tree {base} {k + 1}" for k in range(n_trees)]
+    trees = pipeline.build_shot(results, settings, names, cb)     # one scale, each where it stands
+    for res, tree, folder in zip(results, trees, folders):
+        _write_tree(args, res, tree, folder, outputs, wanted, gen is None, cb)
     if gen is not None:
-        return _generate_from_tree(args, gen, tree, base, outputs, wanted)
+        return _generate_from_tree(args, gen, trees[0], base, outputs, wanted)
     return 0
 
 
-def _write_tree(args, res, settings, out: str, name: str, outputs, wanted, exports: bool, cb):
-    """Build one reconstructed tree's 3D model and write its files into ``out``; returns the tree."""
+def _write_tree(args, res, tree, out: str, outputs, wanted, exports: bool, cb) -> None:
+    """Write one reconstructed tree's files (its 2D result ``res``, its 3D ``tree``) into ``out``."""
     os.makedirs(out, exist_ok=True)
     for w in res.warnings:
         sys.stderr.write(f"warning: {w}\n")
     meta = {"video": os.path.abspath(args.video), "frames": [res.start, res.stop],
             "levels": args.levels, "scale": args.scale, "version": __version__}
     skeleton_io.save_skeleton(os.path.join(out, "skeleton.npz"), res.skeleton, meta)
-    tree = pipeline.build_3d(res, settings, name=name, progress=cb)
     tree.meta.update(meta)
     save_tree(os.path.join(out, "tree3d.npz"), tree)
     if args.npz:
@@ -362,7 +362,6 @@ def _write_tree(args, res, settings, out: str, name: str, outputs, wanted, expor
     sure = "" if conf is None else f", {node_motion.confidence_summary(conf)}"
     sys.stderr.write(f"done: {res.skeleton.n_nodes} nodes, {res.tracks.n_tracks} tracks, "
                      f"{res.tracks.n_frames} frames{sure} -> {out}\n")
-    return tree
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -50,6 +50,7 @@ class TreeMeta(TypedDict, total=False):
     twigs: dict[str, Any]
     leaf_colour: dict[str, Any]
     fronds: dict[str, Any]
+    shot_offset_m: list[float]
     bark_colour: dict[str, Any]
     # a generated tree (generate.growth.grow_tree)
     species: str
@@ -105,6 +106,8 @@ KEYS: dict[str, Key] = {
                        "the bark's colour: the trunk's pixels in frame 1 as albedo, or a default bark"),
     "leaf_colour": Key("{mode, colour sRGB [3], source, why}", ("leaf_seeds.place_leaves",),
                        "the leaves' colour: the mode asked, the median colour used and how it was decided"),
+    "shot_offset_m": Key("[x, y, z] metres", ("pipeline.build_shot",),
+                         "where the tree's base stands from the shot's first tree (Blender places its rig there)"),
     "fronds": Key("{width_px, leaf_size_m, was_m, why}", ("pipeline.build_3d",),
                   "a palm's frond width in frame 1 and the leaflet length it gave (detail.fronds.fit_fronds)"),
     "species": Key("name", ("growth.grow_tree",), "species the tree was grown from"),

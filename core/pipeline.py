@@ -22,7 +22,7 @@ from .errors import InputError
 from .generate.limbs import LIMB_SOURCES, grown_limbs, limb_species
 from .meta import TreeMeta
 from .params import param, same_as
-from .progress import ProgressFn, expected_seconds, stage_split
+from .progress import ProgressFn, expected_seconds, stage_split, sub_progress
 from .reconstruct.branch_fit import fit_to_video, measure_branches, tree_map
 from .reconstruct.foreground import foreground
 from .reconstruct.lift import LiftParams, lift
@@ -43,8 +43,9 @@ from .reconstruct.tracks import detect_corners
 from .reconstruct.video import open_video, parse_frame_range
 from .tree3d import Tree3D, image_to_plane, pipe_radii, uneven_times
 
-__all__ = ["SKELETON_KINDS", "STAGE_COSTS_3D", "Result", "Settings", "add_leaves", "build_3d", "check_settings",
-           "clip_frames", "count_outlines", "first_frame", "run", "run_all", "share_2d", "track_video", "with_limbs"]
+__all__ = ["SKELETON_KINDS", "STAGE_COSTS_3D", "Result", "Settings", "add_leaves", "build_3d", "build_shot",
+           "check_settings", "clip_frames", "count_outlines", "first_frame", "run", "run_all", "share_2d", "track_video",
+           "with_limbs"]
 
 #: Seconds a 3D stage takes ≈ fixed + per frame × frames ``(fixed s, s per frame)``, measured like
 #: :data:`.reconstruct.run.STAGE_COSTS_2D` (sample_videos/broad and sparse, 12–180 frames, wheel and
@@ -139,8 +140,9 @@ def share_2d(n_frames: int) -> float:
 
 
 def build_3d(res: Result, s: Settings | None = None, name: str = "Tree",
-             progress: ProgressFn | None = None) -> Tree3D:
-    """Lift the 2D skeleton to 3D and solve its motion; the tree in metres, ``height_m`` tall."""
+             progress: ProgressFn | None = None, metres_per_px: float | None = None) -> Tree3D:
+    """Lift the 2D skeleton to 3D and solve its motion; the tree in metres, ``height_m`` tall (or
+    at ``metres_per_px``: a shot of several trees shares one scale, :func:`build_shot`)."""
     s = s or Settings()
     if not s.height_m > 0:
         raise InputError(f"tree height {s.height_m} m is not positive; give e.g. 10")
@@ -164,11 +166,11 @@ def build_3d(res: Result, s: Settings | None = None, name: str = "Tree",
     targets = image_to_plane(sk.nodes2d.astype(float), base)[..., [0, 2]]
     mo = solve_motion(lifted.nodes, sk.parents, sk.level, targets, s.motion, parts["motion"], sk.confidence)
     height_px = max(float(lifted.envelope.z.max()), float(lifted.nodes[:, 2].max()), 1.0)
-    scale = s.height_m / height_px
+    scale = s.height_m / height_px if metres_per_px is None else float(metres_per_px)
     if radius_px is not None:
         radius = (radius_px * scale).astype(np.float32)
     else:
-        radius = pipe_radii(sk.parents, s.tip_radius * s.height_m, s.pipe_exponent)
+        radius = pipe_radii(sk.parents, s.tip_radius * height_px * scale, s.pipe_exponent)
     meta: TreeMeta = {"height_px": height_px, "metres_per_px": scale, "solver": s.motion.solver,
             "conifer": lift_params.conifer, "form": res.form, "mu_deg": float(np.degrees(lifted.mu)),
             "envelope": envelope_to_meta(lifted.envelope, scale),
@@ -200,6 +202,28 @@ def build_3d(res: Result, s: Settings | None = None, name: str = "Tree",
         if note:
             tree.meta.update({"fronds": note})
     return tree
+
+
+def build_shot(results: list[Result], s: Settings | None = None, names: list[str] | None = None,
+               progress: ProgressFn | None = None) -> list[Tree3D]:
+    """The trees of one shot (:func:`run_all`) at one scale and where they stand: the tallest in
+    frame 1 is ``height_m`` tall and the others in proportion (each alone would be ``height_m``),
+    and each tree's ``meta["shot_offset_m"]`` is its trunk base's place (x right, y depth 0, z up,
+    metres) from the first tree's, which Blender gives its rig. One tree: :func:`build_3d`."""
+    s = s or Settings()
+    names = names or [f"Tree {k + 1}" for k in range(len(results))]
+    if len(results) == 1:
+        return [build_3d(results[0], s, names[0], progress)]
+    tallest = max(float(np.ptp(r.skeleton.nodes2d[0, :, 1])) for r in results)
+    scale = s.height_m / max(tallest, 1.0)
+    n = len(results)
+    trees = [build_3d(r, s, nm, sub_progress(progress, k / n, (k + 1) / n), metres_per_px=scale)
+             for k, (r, nm) in enumerate(zip(results, names))]
+    b0 = np.asarray(trees[0].meta["base_px"], float)
+    for tree in trees:
+        b = np.asarray(tree.meta["base_px"], float)
+        tree.meta["shot_offset_m"] = [float((b[0] - b0[0]) * scale), 0.0, float((b0[1] - b[1]) * scale)]
+    return trees
 
 
 def first_frame(res: Result) -> np.ndarray | None:

@@ -144,12 +144,9 @@ def make_work(video, outline, settings: pipeline.Settings, name: str):
         # moves evenly
         split = pipeline.share_2d(pipeline.clip_frames(video, settings))
         results = pipeline.run_all(video, outline, settings, sub_progress(progress, 0.0, split))
-        n = len(results)
-        names = tree_names(name, n)
-        return [(res, pipeline.build_3d(res, settings, name=nm,
-                                        progress=sub_progress(progress, split + (1 - split) * k / n,
-                                                              split + (1 - split) * (k + 1) / n)))
-                for k, (res, nm) in enumerate(zip(results, names))]
+        trees = pipeline.build_shot(results, settings, tree_names(name, len(results)),
+                                    sub_progress(progress, split, 1.0))     # one scale, each where it stands
+        return list(zip(results, trees))
     return work
 
 

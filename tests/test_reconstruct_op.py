@@ -65,9 +65,12 @@ def test_an_outline_of_two_trees_builds_two_collections(addon, tmp_path):
     addon.collection_name = "Oak"
     result, err = _run_op()
     assert result == {"FINISHED"}, err
+    rigs = []
     for name in ("Oak 1", "Oak 2"):
         rig = next(o for o in bpy.data.collections[name].objects if o.type == "ARMATURE")
         assert len(rig.data.bones) > 5
+        rigs.append(rig)
+    assert tuple(rigs[0].location) == (0.0, 0.0, 0.0) and rigs[1].location.x > 2.0    # where the house stands
     assert "Oak" not in bpy.data.collections
     before = _ids()
     assert _run_op()[0] == {"CANCELLED"} and _ids() == before

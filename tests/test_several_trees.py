@@ -74,7 +74,8 @@ def test_an_outline_file_holds_one_or_several_trees(tmp_path):
 def test_two_trees_in_one_shot_are_two_skeletons_from_one_decode(two_trees, monkeypatch):
     """Each tree's skeleton stays in its own outline and matches its own truth as closely as a
     reconstruction of it alone does (frame-1 chamfer ≤ 3 % of its height, coverage ≥ 0.8); the
-    video is decoded once (plus frame 1 read again for the foreground)."""
+    video is decoded once (plus frame 1 read again for the foreground); built as one shot, the
+    trees share a scale and stand where the video shows them."""
     video, path, truths = two_trees
     decoded = [0]
     real = run_mod.iter_frames
@@ -97,6 +98,18 @@ def test_two_trees_in_one_shot_are_two_skeletons_from_one_decode(two_trees, monk
         s = score(res.skeleton.parents, res.skeleton.nodes2d, truth)
         print(f"\ntree {k + 1}: chamfer {s.chamfer1:.4f} H, coverage {s.coverage:.3f}, tips {s.tip_corr:.2f}")
         assert s.chamfer1 <= 0.03 and s.coverage >= 0.8
+    # one scale for the shot, each tree where it stands: the taller (broad) is height_m tall, the
+    # sparse one in proportion, its base 480 px + the bases' offset to the right, on the same ground
+    trees = pipeline.build_shot(results, pipeline.Settings(frames=f"0:{FRAMES}"), ["A", "B"])
+    m = trees[0].meta["metres_per_px"]
+    assert trees[1].meta["metres_per_px"] == m
+    heights = [float(np.ptp(t.nodes3d[0, :, 2])) for t in trees]
+    px = [float(np.ptp(r.skeleton.nodes2d[0, :, 1])) for r in results]
+    assert heights[1] / heights[0] == pytest.approx(px[1] / px[0], rel=0.1)
+    b = [np.asarray(t.meta["base_px"]) for t in trees]
+    assert trees[0].meta["shot_offset_m"] == [0.0, 0.0, 0.0]
+    assert trees[1].meta["shot_offset_m"][0] == pytest.approx((b[1][0] - b[0][0]) * m)
+    assert trees[1].meta["shot_offset_m"][0] > 400 * m and abs(trees[1].meta["shot_offset_m"][2]) < 10 * m
 
 
 def test_pipeline_run_takes_one_tree_and_says_so(two_trees):

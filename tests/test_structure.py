@@ -231,6 +231,14 @@ def test_every_key_a_tree_carries_is_documented_and_every_read_key_is_written():
     s = plain_settings(frames="0:24", twigs=TwigParams(depth=1))
     res = pipeline.run(os.path.join(video, "video.mp4"), os.path.join(video, "outline.json"), s)
     tree = pipeline.build_3d(res, s)
+    import json
+    import tempfile
+    with tempfile.TemporaryDirectory() as d:             # a shot of two trees: the tree and the house
+        two = os.path.join(d, "two.json")
+        poly = json.load(open(os.path.join(video, "outline.json")))["polygon"]
+        json.dump([poly, [[340, 200], [470, 200], [470, 330], [340, 330]]], open(two, "w"))
+        shot = pipeline.build_shot(pipeline.run_all(os.path.join(video, "video.mp4"), two, plain_settings(frames="0:8")),
+                                   plain_settings(frames="0:8"))
     model = species.load_species(species.species_library()["broad"])
     env = envelope_from_any("circle", 8.0)
     gen = growth.grow_tree(model, env, growth.GrowParams(seed=1, node_budget=60, n_frames=12))
@@ -239,9 +247,8 @@ def test_every_key_a_tree_carries_is_documented_and_every_read_key_is_written():
                 and any(isinstance(t, ast.Name) and t.id == "meta" for t in n.targets)
                 and isinstance(n.value, ast.Dict) for k in n.value.keys if isinstance(k, ast.Constant)}
     assert cli_keys >= {"video", "frames", "levels", "scale", "version"}
-    carried = set(tree.meta) | set(gen.meta) | cli_keys
+    carried = set(tree.meta) | set(gen.meta) | cli_keys | set(shot[1].meta)
     assert carried <= set(KEYS), carried - set(KEYS)
-    import tempfile
     with tempfile.TemporaryDirectory() as d:
         save_tree(os.path.join(d, "t.npz"), tree)
         carried |= set(load_tree(os.path.join(d, "t.npz")).meta)

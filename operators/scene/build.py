@@ -87,6 +87,9 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
             context, tree, coll, names["rig"], created,
             (lambda data: leaf_build.add_leaf_edit_bones(data, tree)) if with_leaves else None)
         timings["armature"] = time.perf_counter() - t
+        offset = tree.meta.get("shot_offset_m")      # one of several trees of a shot: where it stands
+        if offset is not None:
+            rig.location = tuple(float(v) for v in offset)
 
         t = time.perf_counter()
         local = bones.local_rotations(tree.parents, tree.nodes3d, rest)
