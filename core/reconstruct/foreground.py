@@ -87,7 +87,7 @@ def local_colour_test(img: np.ndarray, outline: np.ndarray, thr: float, k: int =
     ring_xy = np.stack([rx[::step], ry[::step]], 1).astype(np.float64)
     ring_lab = lab[ry[::step], rx[::step]]
     iy, ix = np.nonzero(outline)
-    _, idx = cKDTree(ring_xy).query(np.stack([ix, iy], 1).astype(np.float64), k=min(k, len(ring_xy)))
+    _, idx = cKDTree(ring_xy).query(np.stack([ix, iy], 1).astype(np.float64), k=min(k, len(ring_xy)), workers=-1)
     n = max(1, 2_000_000 // max(k, 1))                  # chunks of n pixels: (n, k, 3) floats at a time
     px_lab = lab[iy, ix]
     for a in range(0, len(iy), n):
