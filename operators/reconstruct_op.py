@@ -40,7 +40,7 @@ def settings_from(props) -> pipeline.Settings:
     """Core settings from the panel's properties (tracking is cached per video and settings)."""
     s = pipeline.Settings(levels=props.levels, skeleton=props.skeleton_kind, fold_alpha=props.fold_alpha,
                           scale=props.scale,
-                          frames=f"{props.frame_start}:{props.frame_end}" if props.use_frame_range else None,
+                          frames=frame_range(props) if props.use_frame_range else None,
                           height_m=props.height_m, cache_dir=cache_dir())
     s.form = "conifer" if props.conifer and props.form == "auto" else props.form
     s.limbs = props.limbs
@@ -63,6 +63,12 @@ def settings_from(props) -> pipeline.Settings:
     else:
         s.leaves = None
     return s
+
+
+def frame_range(props) -> str:
+    """The core's 0-based, end-exclusive ``"A:B"`` of the panel's Frame Range, which counts as
+    Blender's timeline does: from 1, both ends included (Start 1, End 24: the video's first 24)."""
+    return f"{max(props.frame_start, 1) - 1}:{props.frame_end}"
 
 
 def leaf_colour_setting(mode: str, custom) -> str:

@@ -134,7 +134,7 @@ def _run_op():
 
 def test_reconstruct_with_annotation_outline(addon):
     addon.video_path, addon.outline_source = VIDEO, "ANNOTATION"
-    addon.use_frame_range, addon.frame_start, addon.frame_end = True, 0, 24
+    addon.use_frame_range, addon.frame_start, addon.frame_end = True, 1, 24
     addon.collection_name = "Annotated"
     result, err = _run_op()                                   # no clip yet: refused, nothing added
     assert result == {"CANCELLED"} and "Annotated" not in bpy.data.collections

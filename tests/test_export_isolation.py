@@ -151,7 +151,7 @@ def test_the_artists_flow_through_the_operators(tmp_path):
         p = bpy.context.scene.tree_video
         p.video_path = os.path.join(committed("broad"), "video.mp4")
         p.outline_path = os.path.join(committed("broad"), "outline.json")
-        p.use_frame_range, p.frame_start, p.frame_end = True, 0, 40
+        p.use_frame_range, p.frame_start, p.frame_end = True, 1, 40
         p.build_leaves, p.twig_depth = False, 0
         assert bpy.ops.tree_video.reconstruct("EXEC_DEFAULT") == {"FINISHED"}
         recon = bpy.data.collections[p.collection_name]

@@ -282,3 +282,23 @@ def test_progress_moves_at_an_even_pace_over_a_reconstruction():
         if all(abs(f - share) <= 0.15 for _, f, share in ends):
             return
     raise AssertionError("; ".join(tables))
+
+
+def test_frame_range_counts_as_blenders_timeline_and_details_are_labelled(addon):
+    """Issue 32's panel details: Frame Range from 1 with both ends included (Start 1, End 24: the
+    video's first 24 frames, the core's "0:24"); the solver's advanced settings are a labelled
+    button, not a bare gear; an empty Limb Species says what it grows."""
+    from tree_from_video.operators import reconstruct_op
+    addon.use_frame_range, addon.frame_start, addon.frame_end = True, 1, 24
+    assert reconstruct_op.frame_range(addon) == "0:24"
+    addon.frame_start, addon.frame_end = 11, 40
+    assert reconstruct_op.frame_range(addon) == "10:40"
+    assert reconstruct_op.settings_from(addon).frames == "10:40"
+    assert addon.bl_rna.properties["frame_start"].hard_min == 1
+    addon.limbs, addon.limb_species = "auto", ""
+    log = draw(panel.TREE_PT_reconstruction)
+    assert any(e[0] == "label" and "form's own species" in e[2] for e in log)
+    toggle = next(e for e in log if e[0] == "prop" and e[3] == "show_advanced")
+    assert toggle[4].get("text") == "Advanced Solver Settings" and not toggle[1].use_property_split
+    addon.limb_species = "broad"
+    assert not any(e[0] == "label" and "form's own species" in e[2] for e in draw(panel.TREE_PT_reconstruction))

@@ -35,7 +35,7 @@ def _run_op():
 
 def test_reconstruct_builds_the_tree(addon):
     addon.video_path, addon.outline_path = VIDEO, OUTLINE
-    addon.use_frame_range, addon.frame_start, addon.frame_end = True, 0, 24
+    addon.use_frame_range, addon.frame_start, addon.frame_end = True, 1, 24
     addon.collection_name = "Oak"
     result, err = _run_op()
     assert result == {"FINISHED"}, err
@@ -61,7 +61,7 @@ def test_an_outline_of_two_trees_builds_two_collections(addon, tmp_path):
     path = tmp_path / "two.json"
     path.write_text(json.dumps([poly, [[340, 200], [470, 200], [470, 330], [340, 330]]]))
     addon.video_path, addon.outline_path = VIDEO, str(path)
-    addon.use_frame_range, addon.frame_start, addon.frame_end = True, 0, 12
+    addon.use_frame_range, addon.frame_start, addon.frame_end = True, 1, 12
     addon.collection_name = "Oak"
     result, err = _run_op()
     assert result == {"FINISHED"}, err
@@ -148,7 +148,7 @@ def test_preview_keeps_tracks_and_skeleton_for_the_clip_editor(addon):
 
     from samples import load_truth
     addon.video_path, addon.outline_path = VIDEO, OUTLINE
-    addon.use_frame_range, addon.frame_start, addon.frame_end = True, 10, 40
+    addon.use_frame_range, addon.frame_start, addon.frame_end = True, 11, 40
     before = _ids()
     result = bpy.ops.tree_video.preview("EXEC_DEFAULT")
     assert result == {"FINISHED"} and _ids() == before          # nothing added to the scene
@@ -185,7 +185,7 @@ def test_preview_keeps_tracks_and_skeleton_for_the_clip_editor(addon):
 def test_export_buttons_write_the_tree_and_refuse_bad_targets(addon, tmp_path):
     from tree_from_video.operators.scene import export
     addon.video_path, addon.outline_path = VIDEO, OUTLINE
-    addon.use_frame_range, addon.frame_start, addon.frame_end = True, 0, 24
+    addon.use_frame_range, addon.frame_start, addon.frame_end = True, 1, 24
     addon.collection_name = "Export Me"
     assert not bpy.ops.tree_video.export.poll()                      # nothing built yet
     assert _run_op()[0] == {"FINISHED"}

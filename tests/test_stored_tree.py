@@ -70,7 +70,7 @@ def test_tree_bytes_round_trip_exactly():
 
 def test_a_reopened_file_keeps_the_tree_its_species_and_its_overlay(addon, tmp_path):
     stored, clip_overlay = _mods()
-    coll = _reconstruct(addon, "Oak", (0, 30))
+    coll = _reconstruct(addon, "Oak", (1, 30))
     kept = stored.load_tree(coll)
     assert kept.n_frames == 30 and kept.name == "Oak"
     rig = next(o for o in coll.objects if o.type == "ARMATURE")
@@ -113,8 +113,8 @@ def test_a_reopened_file_keeps_the_tree_its_species_and_its_overlay(addon, tmp_p
 
 def test_with_two_trees_the_selected_one_is_used(addon, tmp_path):
     stored, _ = _mods()
-    oak = _reconstruct(addon, "Oak", (0, 30))
-    elm = _reconstruct(addon, "Elm", (0, 24))
+    oak = _reconstruct(addon, "Oak", (1, 30))
+    elm = _reconstruct(addon, "Elm", (1, 24))
     _reopen(tmp_path / "two.blend")
     stored, _ = _mods()
     oak, elm = bpy.data.collections["Oak"], bpy.data.collections["Elm"]
@@ -142,7 +142,7 @@ def test_with_two_trees_the_selected_one_is_used(addon, tmp_path):
 def test_track_and_preview_loads_the_clip_on_its_first_frame_and_keeps_the_overlay(addon, tmp_path):
     stored, clip_overlay = _mods()
     addon.video_path, addon.outline_path = VIDEO, OUTLINE
-    addon.use_frame_range, addon.frame_start, addon.frame_end = True, 10, 40
+    addon.use_frame_range, addon.frame_start, addon.frame_end = True, 11, 40
     bpy.context.scene.frame_set(77)
     assert bpy.ops.tree_video.preview("EXEC_DEFAULT") == {"FINISHED"}
     clips = list(bpy.data.movieclips)
@@ -150,7 +150,7 @@ def test_track_and_preview_loads_the_clip_on_its_first_frame_and_keeps_the_overl
     assert bpy.context.scene.frame_current == 11                # clip frame 11 = video frame 10, the first previewed
     assert clip_overlay.owners(VIDEO) == [bpy.context.scene]                # kept in the file with the scene
     assert clip_overlay.frame_geometry(VIDEO, 10) is None and clip_overlay.frame_geometry(VIDEO, 11) is not None
-    addon.frame_start = 0
+    addon.frame_start = 1
     assert bpy.ops.tree_video.preview("EXEC_DEFAULT") == {"FINISHED"}
     assert len(bpy.data.movieclips) == 1 and bpy.context.scene.frame_current == 1   # the same clip, frame 1
     pts, seg = clip_overlay.frame_geometry(VIDEO, 1)

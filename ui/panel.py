@@ -147,9 +147,13 @@ class TREE_PT_reconstruction(_TreePanel, bpy.types.Panel):
         col.prop(props, "limbs")
         if props.limbs != "trace":
             col.prop(props, "limb_species")
+            if not props.limb_species.strip():
+                col.label(text="Empty: the form's own species", icon="INFO")
         col.prop(props, "candidates")
         col.prop(props, "solver")
-        col.prop(props, "show_advanced", icon="PREFERENCES")
+        row = col.row()
+        row.use_property_split = False                # a labelled button across the panel, not a bare gear
+        row.prop(props, "show_advanced", text="Advanced Solver Settings", icon="PREFERENCES", toggle=True)
         if props.show_advanced:
             box = col.box()
             box.enabled = props.solver == "probabilistic"

@@ -77,10 +77,11 @@ class TreeVideoSettings(bpy.types.PropertyGroup):
                                          description="Video of the tree moving in wind (mp4, mov, avi)")
     use_frame_range: bpy.props.BoolProperty(name="Frame Range", default=False,
                                             description="Use only part of the video")
-    frame_start: bpy.props.IntProperty(name="Start", default=0, min=0,
-                                       description="First video frame to use (0-based)")
+    frame_start: bpy.props.IntProperty(name="Start", default=1, min=1,
+                                       description="First frame of the video to use (1 = its first frame, "
+                                                   "as Blender's timeline and the Movie Clip editor count)")
     frame_end: bpy.props.IntProperty(name="End", default=240, min=1,
-                                     description="Video frame to stop before (0-based, exclusive)")
+                                     description="Last frame of the video to use (included)")
     scale: bpy.props.FloatProperty(name="Scale", subtype="FACTOR", **_core("scale", open_min=0.01, soft_min=0.05),
                                    description="Downscale the video by this factor for speed (1 = full size)")
     # Outline

@@ -52,7 +52,7 @@ def draw():
     print("annotate:", _draw(_dense(poly), 480, 360), flush=True)
     from tree_from_video.operators.scene import annotation
     print("status after drawing:", annotation.status(props.video_path), flush=True)
-    props.use_frame_range, props.frame_start, props.frame_end = True, 0, 30
+    props.use_frame_range, props.frame_start, props.frame_end = True, 1, 30
     print("preview:", bpy.ops.tree_video.preview("EXEC_DEFAULT"), flush=True)
     bpy.app.timers.register(sidebar, first_interval=0.3)
 

@@ -16,7 +16,7 @@ from _addon import open_tree_tab, register_with_sample  # noqa: E402
 props = register_with_sample()
 for ob in list(bpy.data.objects):          # an empty stage for the tree
     bpy.data.objects.remove(ob)
-props.use_frame_range, props.frame_start, props.frame_end = True, 0, 60
+props.use_frame_range, props.frame_start, props.frame_end = True, 1, 60
 props.show_advanced = True
 props.collection_name = "Broad Tree"
 print("reconstruct:", bpy.ops.tree_video.reconstruct("EXEC_DEFAULT"), flush=True)
