@@ -187,6 +187,18 @@ def draw_settings(layout, context, dialog: bool = False) -> None:
     col = layout.column()
     if not trees.file_trees():
         col.label(text="No tree in this file yet: Reconstruct or Generate one", icon="INFO")
+    width = 440 if dialog or context.region is None else context.region.width / context.preferences.view.ui_scale
+    chars = max(int((width - 70) / CHAR_PX), 20)
+    if LAST_EXPORT and not dialog:                # what the last export wrote comes first
+        last = LAST_EXPORT
+        sub = col.box().column(align=True)
+        sub.label(text=f"Last export: {len(last)} {'file' if len(last) == 1 else 'files'} in", icon="CHECKMARK")
+        for line in _wrap(os.path.dirname(last[0]) + os.sep, chars):
+            sub.label(text=line, icon="BLANK1")
+        for path in last[:3]:
+            sub.label(text=os.path.basename(path), icon="BLANK1")
+        if len(last) > 3:
+            sub.label(text=f"… and {len(last) - 3} more", icon="BLANK1")
     row = col.row()
     row.use_property_split = False
     row.prop(props, "export_scope", expand=True)
@@ -211,24 +223,22 @@ def draw_settings(layout, context, dialog: bool = False) -> None:
             plan(context, props)
         except InputError as exc:
             problem = str(exc)
-    if problem:
+    if problem and any(p in problem for p in LAST_EXPORT):
+        # the next export would overwrite what the last one just wrote: a note, not an error
+        col.label(text="Just written: tick Overwrite to redo", icon="INFO")
+    elif problem:
         box = col.box().column(align=True)
-        width = 440 if dialog or context.region is None else context.region.width / context.preferences.view.ui_scale
-        for k, line in enumerate(_wrap(problem, max(int((width - 70) / 6.2), 20))):
+        for k, line in enumerate(_wrap(problem, chars)):
             box.label(text=line, icon="ERROR" if k == 0 else "BLANK1")
     if not dialog:
         row = col.row()
         row.scale_y = 1.3
         n = len(colls)
         row.operator("tree_video.export", icon="EXPORT", text=f"Export {n} Trees" if n > 1 else "Export Tree")
-    if LAST_EXPORT and not dialog:
-        last = LAST_EXPORT
-        sub = col.column(align=True)
-        sub.label(text=f"Last export: {len(last)} {'file' if len(last) == 1 else 'files'}", icon="CHECKMARK")
-        for path in last[:3]:
-            sub.label(text=path, icon="BLANK1")
-        if len(last) > 3:
-            sub.label(text=f"… and {len(last) - 3} more", icon="BLANK1")
+
+
+#: px per character of a sidebar label (Blender's UI font at scale 1; 6.2 let long paths be cut short)
+CHAR_PX = 7.5
 
 
 def _wrap(text: str, width: int) -> list:

@@ -91,6 +91,15 @@ def test_selected_tree_is_exported_with_its_bones_only(addon, two_trees, tmp_pat
     assert glb_bones(path) == rig_bones                                # its 31 bones, none of Broad's 234
     assert export_op.LAST_EXPORT == [path] and os.path.isabs(path)     # the absolute path is reported
     assert [ob.name for ob in bpy.context.selected_objects if ob.name.startswith("Broad")] == []   # selection kept
+    # the panel then shows what was written first, and the file it just wrote as a note, not an error
+    from test_panel_layout import draw
+    from tree_from_video.ui import panel
+    log = draw(panel.TREE_PT_export)
+    labels = [e[2] for e in log if e[0] == "label"]
+    first = next(k for k, e in enumerate(log) if e[0] == "label" and e[2].startswith("Last export: 1 file"))
+    assert first < next(k for k, e in enumerate(log) if e[0] == "prop" and e[3] == "export_format")
+    assert "Small_Oak.glb" in labels and "Just written: tick Overwrite to redo" in labels
+    assert not any("exists" in t for t in labels)
 
 
 def test_which_trees_selected_means(addon, two_trees):
