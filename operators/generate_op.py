@@ -214,7 +214,7 @@ class TREE_OT_generate(jobs.JobOperator, bpy.types.Operator):
         name = unique_collection_name(f"{model.name} {context.scene.tree_video.gen_seed}")
         try:
             built = build_tree(context, tree, name, curliness=context.scene.tree_video.curliness,
-                               bark=context.scene.tree_video.bark)
+                               bark=context.scene.tree_video.bark, keep_view=True)
         except InputError as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}

@@ -93,6 +93,7 @@ def test_selected_tree_is_exported_with_its_bones_only(addon, two_trees, tmp_pat
     assert [ob.name for ob in bpy.context.selected_objects if ob.name.startswith("Broad")] == []   # selection kept
     # the panel then shows what was written first, and the file it just wrote as a note, not an error
     from test_panel_layout import draw
+
     from tree_from_video.ui import panel
     log = draw(panel.TREE_PT_export)
     labels = [e[2] for e in log if e[0] == "label"]

@@ -95,6 +95,24 @@ def test_generate_one_tree_at_the_cursor_inside_its_envelope():
     assert min(inside) >= 1 - growth.SWAY_OUTSIDE_FRAME - RASTER_SLACK
 
 
+def test_generate_and_forest_keep_the_frame_and_the_selection():
+    """Issue 32: Generate and Generate Forest jumped to the first frame and cleared the selection;
+    an artist generating into a scene keeps both."""
+    p = _props()
+    bpy.ops.mesh.primitive_cube_add(location=(-20.0, 0.0, 0.0))
+    cube = bpy.context.active_object
+    scene = bpy.context.scene
+    scene.frame_end = 100
+    scene.frame_set(37)
+    p.envelope_source, p.gen_height, p.gen_seed = "CIRCLE", 5.0, 2
+    assert bpy.ops.tree_video.generate() == {"FINISHED"}
+    assert scene.frame_current == 37 and cube.select_get() and bpy.context.view_layer.objects.active == cube
+    p.forest_ground, p.forest_count, p.forest_spacing = None, 2, 8.0
+    assert bpy.ops.tree_video.generate_forest() == {"FINISHED"}
+    assert scene.frame_current == 37 and cube.select_get() and bpy.context.view_layer.objects.active == cube
+    assert [o.name for o in bpy.context.selected_objects] == [cube.name]
+
+
 def test_generate_inside_a_curve_drawn_in_the_front_view():
     """A closed curve in the X/Z plane (a circle of radius 3 m around (5, 4)): the tree grows at
     the curve's size and stands at its lowest point, every node inside the drawn circle."""

@@ -30,8 +30,11 @@ MAX_NAME = 63
 def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = False,
                mesh: bool = True, sides: int = 8, leaves: bool = True,
                leaf_image: str | None = None, curliness: float | None = None,
-               bark: str | None = None, materials: dict | None = None, update_frame: bool = True) -> dict:
-    """Create the animated tree in a new collection ``collection_name`` under the scene collection.
+               bark: str | None = None, materials: dict | None = None, update_frame: bool = True,
+               keep_view: bool = False) -> dict:
+    """Create the animated tree in a new collection ``collection_name`` under the scene collection
+    (unselected, its rig active, at the scene's first frame; with ``keep_view`` the selection, the
+    active object and the current frame stay as they were: a tree generated into a scene).
 
     Creates an armature object ``"<name> Rig"`` (one bone per edge, ``"B{child:03d}"``, rest pose =
     tree frame 0, roll 0, connected to the parent bone; the bones in a hidden bone collection
@@ -62,6 +65,9 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
     ``keys``, ``armature``, ``mesh``, ``leaves``, ``total``)."""
     t_total = time.perf_counter()
     _validate(tree, collection_name, sides)
+    layer = context.view_layer                  # what keep_view restores (edit mode needs the rig active)
+    was_selected = [o for o in layer.objects if o.select_get()] if keep_view else []
+    was_active = layer.objects.active
     branch_params = branch_mesh.mesh_params(tree, sides, curliness, bark)
     bm.check_params(branch_params)
     old = bpy.data.collections.get(collection_name)
@@ -136,10 +142,24 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
                 shared = materials is not None and any(id_ is m for m in materials.values())
                 if id_ is not None and id_.name != name and not shared:
                     id_.name = name
-        deselect_all(context.view_layer)        # lands unselected: no orange outline over the new tree,
-        context.view_layer.objects.active = rig  # the rig active (its properties show, ready to select)
-        if update_frame:
-            scene.frame_set(scene.frame_start)
+        if keep_view:                           # generated into the artist's scene: their frame and selection
+            deselect_all(layer)
+            for ob in was_selected:
+                try:
+                    ob.select_set(True)
+                except (ReferenceError, RuntimeError):    # removed meanwhile (a replaced tree's)
+                    pass
+            try:
+                layer.objects.active = was_active
+            except (ReferenceError, RuntimeError):
+                layer.objects.active = None
+            if update_frame:
+                scene.frame_set(scene.frame_current)        # the new rig posed at the frame shown
+        else:
+            deselect_all(context.view_layer)    # lands unselected: no orange outline over the new tree,
+            context.view_layer.objects.active = rig  # the rig active (its properties show, ready to select)
+            if update_frame:
+                scene.frame_set(scene.frame_start)
     except BaseException:
         created.remove(context)
         raise

@@ -8,7 +8,7 @@ import time
 import bpy
 
 from .build import build_tree
-from .objects import deselect_all, remove_collection, unique_collection_name
+from .objects import remove_collection, unique_collection_name
 from .timing import fit_scene_timing
 from .trees import scene_trees
 
@@ -58,12 +58,11 @@ class ForestBuild:
                                   "leaf": built["leaves"].data.materials[0] if built["leaves"] is not None else None}
             self.k += 1
         if self.finished:
-            deselect_all(context.view_layer)              # the forest is many objects: select none
-            scene = context.scene
+            scene = context.scene                         # the artist's frame and selection are kept
             mine = {b["collection"].name for b in self.built}
             others = [c for c in scene_trees(scene) if c.name not in mine]
             fit_scene_timing(scene, self.trees[0].fps, max(t.n_frames for t in self.trees), first=not others)
-            scene.frame_set(scene.frame_start)
+            scene.frame_set(scene.frame_current)          # every new rig posed at the frame shown
         self.elapsed += time.perf_counter() - t0
 
     def remove(self) -> None:
