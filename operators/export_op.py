@@ -287,8 +287,10 @@ class TREE_OT_export(jobs.JobOperator, bpy.types.Operator):
             print(f"tree_from_video: exported {path}", flush=True)
         if len(result) == 1:
             self.report({"INFO"}, f"exported {result[0]}")
-        else:
-            self.report({"INFO"}, f"exported {len(result)} files: {', '.join(result)}")
+        else:                   # one status line that fits: the count and the folder (the panel lists the files)
+            folders = {os.path.dirname(p) for p in result}
+            where = f" to {folders.pop()}" if len(folders) == 1 else ""
+            self.report({"INFO"}, f"exported {len(result)} files{where} (Export panel: Last export)")
         return {"FINISHED"}
 
 
