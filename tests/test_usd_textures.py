@@ -85,3 +85,17 @@ def _asset_paths(layer):
                 out.append(v.path)
     layer.Traverse(layer.pseudoRoot.path, visit)
     return out
+
+
+def test_fbx_embeds_the_leaf_texture_and_reimports_with_it(leafy, tmp_path):
+    """Issue 32: the FBX dropped the leaf texture (``path_mode`` AUTO embeds nothing), so its leaves
+    imported white. Now it is embedded (COPY + embed_textures): the file holds one PNG, nothing is
+    written beside it, and re-imported into an empty Blender the leaf material shows that image."""
+    path = tmp_path / "tree.fbx"
+    export.export_fbx(path, leafy)
+    assert open(path, "rb").read().count(b"\x89PNG") == 1 and os.listdir(tmp_path) == ["tree.fbx"]
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    bpy.ops.import_scene.fbx(filepath=str(path))
+    images = [n.image for m in bpy.data.materials if m.node_tree is not None for n in m.node_tree.nodes
+              if n.type == "TEX_IMAGE" and n.image is not None]
+    assert len(images) == 1 and images[0].size[0] >= 64 and images[0].packed_file is not None

@@ -37,12 +37,13 @@ def export_fbx(path: str | os.PathLike, objects: Iterable[bpy.types.Object], *, 
 
     Baked animation with exactly one key per frame and bone (``bake_anim_simplify_factor=0``,
     start/end keys forced, step 1), no leaf bones added (bone count stays exact), only the
-    rig's current action."""
+    rig's current action. Textures are embedded (``path_mode`` COPY + ``embed_textures``: with AUTO the
+    leaf texture was left out and the leaves imported white)."""
     options = dict(use_selection=True, object_types={"ARMATURE", "MESH"}, add_leaf_bones=False,
                    bake_anim=True, bake_anim_use_all_bones=True, bake_anim_use_nla_strips=False,
                    bake_anim_use_all_actions=False, bake_anim_force_startend_keying=True,
                    bake_anim_step=1.0, bake_anim_simplify_factor=0.0, use_armature_deform_only=False,
-                   use_mesh_modifiers=False, path_mode="AUTO", batch_mode="OFF")
+                   use_mesh_modifiers=False, path_mode="COPY", embed_textures=True, batch_mode="OFF")
     return _export("FBX", bpy.ops.export_scene, "fbx", path, (".fbx",), objects, options, overwrite, context)
 
 
