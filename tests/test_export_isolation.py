@@ -87,7 +87,7 @@ def test_fbx_after_generate_keeps_the_reconstructions_motion(tmp_path):
     _crowd(bpy.context)
     path = export.export_fbx(tmp_path / "recon.fbx", tree_objects(recon["collection"]))
     bpy.ops.wm.read_factory_settings(use_empty=True)
-    bpy.ops.import_scene.fbx(filepath=path, anim_offset=0)
+    bpy.ops.import_scene.fbx(filepath=path)
     rigs = [ob for ob in bpy.context.scene.objects if ob.type == "ARMATURE"]
     assert len(rigs) == 1 and len(rigs[0].data.bones) == tree.n_nodes - 1
     names = [f"B{c:03d}" for c in tree.edges()[:, 1]]

@@ -59,14 +59,21 @@ def test_fbx_round_trip_keeps_bones_and_pose(tree, built, tmp_path):
     assert export.export_fbx(path, built) == str(path)
     _report("FBX export", t0, path)
     assert _leftovers(tmp_path) == []
+    from tree_from_video.operators.scene.action_api import action_fcurves
+    kept = [fc.range() for fc in action_fcurves(built[0].animation_data.action)]
+    assert min(r[0] for r in kept) == 1.0 and max(r[1] for r in kept) == FRAMES    # the scene's keys put back
 
     bpy.ops.wm.read_factory_settings(use_empty=True)
-    bpy.ops.import_scene.fbx(filepath=str(path), anim_offset=0)   # FBX time 0 = frame 0
+    bpy.ops.import_scene.fbx(filepath=str(path))        # Blender's default: FBX time 0 = frame 1
     rigs = [ob for ob in bpy.context.scene.objects if ob.type == "ARMATURE"]
     assert len(rigs) == 1
     rig = rigs[0]
     names = _names(tree)
     assert sorted(b.name for b in rig.data.bones) == sorted(names)       # no leaf bones added
+    # keys on the frames they were made on (issue 32: 1..F came back on 2..F+1)
+    from tree_from_video.operators.scene.action_api import action_fcurves
+    ranges = [fc.range() for fc in action_fcurves(rig.animation_data.action)]
+    assert min(r[0] for r in ranges) == pytest.approx(1.0) and max(r[1] for r in ranges) == pytest.approx(FRAMES)
     assert [m.type for ob in bpy.context.scene.objects if ob.type == "MESH" for m in ob.modifiers] == ["ARMATURE"]
     tol = 1e-4 * tree_height(tree)
     for k in (1, 13, 40, FRAMES):

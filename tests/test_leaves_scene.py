@@ -157,7 +157,7 @@ def test_leaves_are_in_the_gltf_fbx_and_usd_exports_animated(tree, tmp_path):
     fbx = tmp_path / "tree.fbx"
     export.export_fbx(fbx, objects)
     bpy.ops.wm.read_factory_settings(use_empty=True)
-    bpy.ops.import_scene.fbx(filepath=str(fbx), anim_offset=0)
+    bpy.ops.import_scene.fbx(filepath=str(fbx))
     rig = next(ob for ob in bpy.context.scene.objects if ob.type == "ARMATURE")
     assert set(names) <= {b.name for b in rig.data.bones}
     leaf_mesh = next(ob for ob in bpy.context.scene.objects if ob.type == "MESH" and "Leaves" in ob.name)

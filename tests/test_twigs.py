@@ -281,7 +281,7 @@ def test_fbx_with_twigs_reimports_their_bones_animated(blender, twiggy, tmp_path
     built = build.build_tree(blender.context, tree, "Tree", curliness=0.5, bark="rough")
     path = export.export_fbx(tmp_path / "tree.fbx", [built["armature"], built["mesh"]])
     blender.ops.wm.read_factory_settings(use_empty=True)
-    blender.ops.import_scene.fbx(filepath=str(path), anim_offset=0)
+    blender.ops.import_scene.fbx(filepath=str(path))
     rig = [ob for ob in blender.context.scene.objects if ob.type == "ARMATURE"][0]
     names = bones.bone_names(tree.parents)
     twig_names = [f"B{c:03d}" for c in range(N, tree.n_nodes)]

@@ -15,6 +15,7 @@ from contextlib import contextmanager
 from typing import Iterable
 
 import bpy
+import numpy as np
 
 from ...core.errors import InputError
 from .action_api import action_fcurves
@@ -37,14 +38,17 @@ def export_fbx(path: str | os.PathLike, objects: Iterable[bpy.types.Object], *, 
 
     Baked animation with exactly one key per frame and bone (``bake_anim_simplify_factor=0``,
     start/end keys forced, step 1), no leaf bones added (bone count stays exact), only the
-    rig's current action. Textures are embedded (``path_mode`` COPY + ``embed_textures``: with AUTO the
+    rig's current action, its first frame at FBX time 0 (the exporter writes a frame's number as
+    its time: keys on frames 1..F came back on 2..F+1 with Blender's own import, and engines saw
+    an empty first frame). Textures are embedded (``path_mode`` COPY + ``embed_textures``: with AUTO the
     leaf texture was left out and the leaves imported white)."""
     options = dict(use_selection=True, object_types={"ARMATURE", "MESH"}, add_leaf_bones=False,
                    bake_anim=True, bake_anim_use_all_bones=True, bake_anim_use_nla_strips=False,
                    bake_anim_use_all_actions=False, bake_anim_force_startend_keying=True,
                    bake_anim_step=1.0, bake_anim_simplify_factor=0.0, use_armature_deform_only=False,
                    use_mesh_modifiers=False, path_mode="COPY", embed_textures=True, batch_mode="OFF")
-    return _export("FBX", bpy.ops.export_scene, "fbx", path, (".fbx",), objects, options, overwrite, context)
+    return _export("FBX", bpy.ops.export_scene, "fbx", path, (".fbx",), objects, options, overwrite, context,
+                   keys_from_zero=True)
 
 
 def export_gltf(path: str | os.PathLike, objects: Iterable[bpy.types.Object], *, overwrite: bool = False,
@@ -121,7 +125,7 @@ def _supported(props: dict, options: dict) -> dict:
 
 
 def _export(fmt: str, module, op_name: str, path, exts: tuple, objects, options: dict, overwrite: bool,
-            context) -> str:
+            context, keys_from_zero: bool = False) -> str:
     context = context or bpy.context
     path = os.path.abspath(os.fspath(path))
     objects = [ob for ob in objects if ob is not None]
@@ -141,7 +145,7 @@ def _export(fmt: str, module, op_name: str, path, exts: tuple, objects, options:
     ext = os.path.splitext(path)[1]
     tmp = os.path.join(folder, f".{os.path.basename(path)}.{uuid.uuid4().hex[:8]}.tmp{ext}")
     try:
-        with _selected(context, objects), _frame_range(context.scene, objects):
+        with _selected(context, objects), _keys_from_zero(objects, keys_from_zero), _frame_range(context.scene, objects):
             result = _run_operator(module, op_name, filepath=tmp, check_existing=False,
                                    **_supported(props, options))
         if "FINISHED" not in result:
@@ -218,6 +222,44 @@ def _object_images(objects) -> list:
                 if node.type == "TEX_IMAGE" and img is not None:
                     found[img.as_pointer()] = img
     return list(found.values())
+
+
+def _actions(objects) -> list:
+    """The actions animating ``objects`` (the rig's, the leaf mesh's shape keys'), each once."""
+    out: list = []
+    for ob in objects:
+        for owner in (ob, getattr(getattr(ob, "data", None), "shape_keys", None)):
+            ad = getattr(owner, "animation_data", None)
+            if ad is not None and ad.action is not None and all(ad.action is not a for a in out):
+                out.append(ad.action)
+    return out
+
+
+@contextmanager
+def _keys_from_zero(objects, enabled: bool = True):
+    """While exporting, every key of ``objects``' actions moved so the armature's first key is on
+    frame 0 (whole frames, handles too: the same curves, earlier); put back afterwards."""
+    actions = _actions(objects) if enabled else []
+    curves = [fc for a in actions for fc in action_fcurves(a) if len(fc.keyframe_points)]
+    first = min((fc.keyframe_points[0].co[0] for fc in curves), default=0.0)
+    shift = -float(round(first))
+
+    def move(by: float) -> None:
+        for fc in curves:
+            pts = fc.keyframe_points
+            for attr in ("co", "handle_left", "handle_right"):
+                xy = np.empty(2 * len(pts), np.float32)
+                pts.foreach_get(attr, xy)
+                xy[0::2] += by
+                pts.foreach_set(attr, xy)
+            fc.update()
+    if shift:
+        move(shift)
+    try:
+        yield
+    finally:
+        if shift:
+            move(-shift)
 
 
 @contextmanager
