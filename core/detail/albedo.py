@@ -29,6 +29,7 @@ sample), or ``"#RRGGBB"`` (the user's colour, with the clusters' brightness spre
 """
 from __future__ import annotations
 
+import colorsys
 import re
 from dataclasses import dataclass, field
 
@@ -256,17 +257,7 @@ def trunk_pixels(shape: tuple[int, int], parents: np.ndarray, nodes_px: np.ndarr
 
 def bark_hue(srgb: np.ndarray) -> float:
     """HSV hue of an sRGB ``(3,)`` colour in degrees 0..360 (red 0, yellow 60, green 120, cyan 180)."""
-    r, g, b = (float(c) for c in np.asarray(srgb, np.float64))
-    mx, mn = max(r, g, b), min(r, g, b)
-    if mx - mn < 1e-9:
-        return 0.0
-    if mx == r:
-        h = ((g - b) / (mx - mn)) % 6.0
-    elif mx == g:
-        h = (b - r) / (mx - mn) + 2.0
-    else:
-        h = (r - g) / (mx - mn) + 4.0
-    return 60.0 * h
+    return 360.0 * colorsys.rgb_to_hsv(*(float(c) for c in np.asarray(srgb, np.float64)))[0]
 
 
 def hidden_bark() -> LeafColour:
