@@ -149,10 +149,20 @@ def load_outlines(path: str | os.PathLike, width: int, height: int, scale: float
         return [polygon_outline(p * scale, width, height, f"outline '{path}', polygon {k + 1}")
                 for k, p in enumerate(polys)]
     one = load_outline(path, width, height, scale)
-    n, labels, stats, _ = cv2.connectedComponentsWithStats(one.mask.astype(np.uint8), connectivity=8)
-    area = stats[1:, cv2.CC_STAT_AREA]
-    big = np.flatnonzero(area >= max(TREE_COMPONENT_SHARE * area.max(), MIN_AREA_PX)) + 1
-    if len(big) <= 1:
+    parts = separate_regions(one.mask, TREE_COMPONENT_SHARE, MIN_AREA_PX)
+    if len(parts) <= 1:
         return [one]
-    big = big[np.argsort(stats[big, cv2.CC_STAT_LEFT], kind="stable")]      # left to right
-    return [Outline(_mask_to_polygon(labels == k).astype(np.float32), labels == k) for k in big]
+    return [Outline(_mask_to_polygon(m).astype(np.float32), m) for m in parts]
+
+
+def separate_regions(mask: np.ndarray, share: float, min_area: float = 0.0) -> list[np.ndarray]:
+    """The 8-connected regions of ``mask (H, W)`` bool at least ``share`` of the largest one's area
+    (and ``min_area`` px), each a bool mask, left to right: one tree each (a painted mask's
+    parts, the automatic outline's swaying regions)."""
+    n, labels, stats, _ = cv2.connectedComponentsWithStats(np.asarray(mask, np.uint8), connectivity=8)
+    if n < 2:
+        return []
+    area = stats[1:, cv2.CC_STAT_AREA]
+    big = np.flatnonzero(area >= max(share * area.max(), min_area)) + 1
+    big = big[np.argsort(stats[big, cv2.CC_STAT_LEFT], kind="stable")]
+    return [labels == k for k in big]

@@ -14,7 +14,7 @@ import cv2
 import numpy as np
 
 from ..errors import InputError
-from ..outline import Outline, polygon_to_mask
+from ..outline import Outline, polygon_to_mask, separate_regions
 from ..progress import ProgressFn, report
 from .tracks import apply_affine, lk_forward_backward
 from .video import VideoInfo, iter_frames
@@ -94,15 +94,12 @@ def _find(info: VideoInfo, start: int, seconds: float, max_corners: int,
     for x, y in np.round(pts_m).astype(int):
         cv2.circle(mask, (x, y), r, 255, -1)
     mask = cv2.morphologyEx(mask, cv2.MORPH_CLOSE, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1,) * 2))
-    nlab, lab, stats, _ = cv2.connectedComponentsWithStats(mask)
-    if nlab < 2:
+    regions = separate_regions(mask > 0, TREE_SHARE)
+    if not regions:
         raise InputError("could not find the tree's region; draw the outline instead")
-    area = stats[1:, cv2.CC_STAT_AREA]
-    trees = 1 + np.flatnonzero(area >= TREE_SHARE * area.max())
-    trees = trees[np.argsort(stats[trees, cv2.CC_STAT_LEFT], kind="stable")]
     out = []
-    for k in trees:
-        contours, _ = cv2.findContours((lab == k).astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+    for region in regions:
+        contours, _ = cv2.findContours(region.astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
         contour = max(contours, key=cv2.contourArea)
         poly = cv2.approxPolyDP(contour, 0.005 * cv2.arcLength(contour, True), True).reshape(-1, 2).astype(np.float32)
         out.append(Outline(poly, polygon_to_mask(poly, w, h)))
