@@ -16,11 +16,14 @@ import glob
 import json
 import os
 import subprocess
+import sys
+import time
 from dataclasses import dataclass
 
 import numpy as np
 
 HERE = os.path.join(os.path.dirname(os.path.abspath(__file__)), "real_footage")
+BATCH = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "batch.py")
 EXTS = (".mp4", ".avi", ".mov", ".mkv")
 
 
@@ -78,3 +81,33 @@ def write_outline(poly: np.ndarray, path: str) -> str:
     with open(path, "w") as f:
         json.dump(np.round(np.asarray(poly, float), 1).tolist(), f)
     return path
+
+
+def select(folder: str, only: str = "") -> list[RealClip]:
+    """:func:`prepare`'s clips of ``folder``, those named in ``only`` (comma-separated keys) when
+    given; exits with one line (code 2) when there is none."""
+    clips = [c for c in prepare(folder) if not only or c.key in only.split(",")]
+    if not clips:
+        print(f"error: no clip of benchmarks/real_footage/clips.json in {folder}", file=sys.stderr)
+        raise SystemExit(2)
+    return clips
+
+
+@dataclass
+class BatchRun:
+    """One batch run: exit code, wall seconds, its ``warning:`` lines and its last line."""
+    code: int
+    seconds: float
+    warnings: list[str]
+    last: str
+
+
+def run_batch(video: str, outline: str, out: str, form: str, *extra: str) -> BatchRun:
+    """Run ``batch.py VIDEO --outline OUTLINE --out OUT --no-video --force --form FORM [EXTRA]``."""
+    cmd = [sys.executable, BATCH, video, "--outline", outline, "--out", out, "--no-video", "--force",
+           "--form", form, *extra]
+    t = time.perf_counter()
+    p = subprocess.run(cmd, capture_output=True, text=True)
+    lines = [ln for ln in p.stderr.splitlines() if ln.strip() and not ln.startswith("[")]
+    return BatchRun(p.returncode, time.perf_counter() - t, [ln for ln in lines if ln.startswith("warning:")],
+                    lines[-1] if lines else "")

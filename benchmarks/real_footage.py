@@ -21,14 +21,13 @@ from __future__ import annotations
 
 import argparse
 import os
-import subprocess
 import sys
 import tempfile
 import time
 
 import cv2
 import numpy as np
-from real_clips import RealClip, prepare, write_outline
+from real_clips import RealClip, run_batch, select, write_outline
 
 from _package import ROOT, load_package
 
@@ -46,16 +45,11 @@ def decode_seconds(path: str) -> float:
 
 
 def batch(clip: RealClip, form: str, out: str) -> tuple[float, list[str]]:
-    """Run the batch job; seconds and its warning lines (raises on a failed run)."""
-    outline = write_outline(clip.outline, os.path.join(out, "outline.json"))
-    cmd = [sys.executable, os.path.join(ROOT, "batch.py"), clip.video, "--outline", outline, "--out", out,
-           "--npz", "--no-video", "--force", "--form", form]
-    t = time.perf_counter()
-    p = subprocess.run(cmd, capture_output=True, text=True)
-    sec = time.perf_counter() - t
-    if p.returncode != 0:
-        raise RuntimeError(f"{clip.key}: batch exited {p.returncode}: {p.stderr.strip().splitlines()[-1:]}")
-    return sec, [ln for ln in p.stderr.splitlines() if ln.startswith("warning:")]
+    """Run the batch job (with ``--npz``); seconds and its warning lines (raises on a failed run)."""
+    r = run_batch(clip.video, write_outline(clip.outline, os.path.join(out, "outline.json")), out, form, "--npz")
+    if r.code != 0:
+        raise RuntimeError(f"{clip.key}: batch exited {r.code}: {r.last}")
+    return r.seconds, r.warnings
 
 
 def render(out: str, picture: str) -> tuple[np.ndarray, np.ndarray, object]:
@@ -114,10 +108,7 @@ def main() -> int:
     ap.add_argument("--pictures", default="", help="folder for frame 1 beside the render")
     args = ap.parse_args()
     load_package()
-    clips = [c for c in prepare(args.clips) if not args.only or c.key in args.only.split(",")]
-    if not clips:
-        print(f"error: no clip of benchmarks/real_footage/clips.json in {args.clips}", file=sys.stderr)
-        return 2
+    clips = select(args.clips, args.only)
     print(f"{'clip':<12} {'kind':<8} {'asked':<9} {'form':<9} {'IoU':>5} {'cover':>5} {'motion':>6} "
           f"{'nodes':>5} {'clust':>5} {'s':>6} {'x dec':>5} {'palm?':>5}  warnings")
     with tempfile.TemporaryDirectory() as tmp:

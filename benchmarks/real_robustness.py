@@ -14,13 +14,10 @@ import os
 import subprocess
 import sys
 import tempfile
-import time
 
 import cv2
 import numpy as np
-from real_clips import RealClip, prepare, write_outline
-
-from _package import ROOT
+from real_clips import RealClip, run_batch, select, write_outline
 
 #: longest side of a 2x variant (beyond it the variant is skipped, said in its row)
 MAX_SIDE = 2600
@@ -86,27 +83,13 @@ def variants(clip: RealClip, work: str) -> list[tuple[str, str, str]]:
     return out
 
 
-def run(video: str, outline: str, form: str, out: str) -> tuple[int, float, list[str], str]:
-    """Exit code, seconds, warning lines and last line of one batch run."""
-    cmd = [sys.executable, os.path.join(ROOT, "batch.py"), video, "--outline", outline, "--out", out,
-           "--no-video", "--force", "--form", form]
-    t = time.perf_counter()
-    p = subprocess.run(cmd, capture_output=True, text=True)
-    lines = [ln for ln in p.stderr.splitlines() if ln.strip() and not ln.startswith("[")]
-    warns = [ln for ln in lines if ln.startswith("warning:")]
-    return p.returncode, time.perf_counter() - t, warns, (lines[-1] if lines else "")
-
-
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--clips", required=True, help="folder of the real clips (see real_clips.py)")
     ap.add_argument("--only", default="", help="comma-separated clip keys")
     ap.add_argument("--work", default="", help="folder for the variants (default: a temporary one)")
     args = ap.parse_args()
-    clips = [c for c in prepare(args.clips) if not args.only or c.key in args.only.split(",")]
-    if not clips:
-        print(f"error: no clip of benchmarks/real_footage/clips.json in {args.clips}", file=sys.stderr)
-        return 2
+    clips = select(args.clips, args.only)
     failed = 0
     with tempfile.TemporaryDirectory() as tmp:
         work = args.work or tmp
@@ -118,12 +101,11 @@ def main() -> int:
                 if not video:
                     print(f"{clip.key:<12} {name:<16} {'-':>4} {'-':>6} {'-':>4}  {outline}", flush=True)
                     continue
-                rc, sec, warns, last = run(video, outline, clip.form if outline != "auto" else "auto",
-                                           os.path.join(folder, "out"))
-                bad = "internal error" in last or rc not in (0, 2)
+                r = run_batch(video, outline, os.path.join(folder, "out"), clip.form if outline != "auto" else "auto")
+                bad = "internal error" in r.last or r.code not in (0, 2)
                 failed += bad
-                print(f"{clip.key:<12} {name:<16} {rc:>4} {sec:>6.1f} {len(warns):>4}  "
-                      f"{'FAIL ' if bad else ''}{last[:110]}", flush=True)
+                print(f"{clip.key:<12} {name:<16} {r.code:>4} {r.seconds:>6.1f} {len(r.warnings):>4}  "
+                      f"{'FAIL ' if bad else ''}{r.last[:110]}", flush=True)
     print(f"{failed} runs ended in an internal error")
     return 1 if failed else 0
 
