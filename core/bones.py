@@ -161,6 +161,13 @@ def pose_tails(parents: np.ndarray, rest_positions: np.ndarray, rest_matrices: n
 
     ``rest_positions (N, 3)`` metres, ``rest_matrices (B, 3, 3)``, ``local (F, B, 4)`` →
     node positions ``(F, N, 3)`` metres as Blender would pose them (rest lengths, roots fixed)."""
+    return pose(parents, rest_positions, rest_matrices, local)[0]
+
+
+def pose(parents: np.ndarray, rest_positions: np.ndarray, rest_matrices: np.ndarray,
+         local: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`pose_tails` and the bones' world rotations ``(F, B, 4)`` from rest (what carries a
+    point fixed to a bone: ``head_t + q_t · (p − head_rest)``)."""
     rest_positions = np.asarray(rest_positions, np.float64)
     edges = bone_edges(parents)
     parent_bone = bone_parents(parents)
@@ -178,7 +185,7 @@ def pose_tails(parents: np.ndarray, rest_positions: np.ndarray, rest_matrices: n
         else:
             qw[:, idx] = quat_mul(qw[:, parent_bone[idx]], delta)
         out[:, edges[idx, 1]] = out[:, edges[idx, 0]] + quat_rotate(qw[:, idx], offset[idx])
-    return out
+    return out, qw
 
 
 def rest_frames(parents: np.ndarray, rest_positions: np.ndarray) -> np.ndarray:

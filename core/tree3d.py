@@ -35,7 +35,8 @@ class LeafClusters:
     ``leaf_hz``, ``leaf_angle`` (radians): every leaf's own high-frequency flap about its stem,
     ``leaf_angle · sin(2π leaf_hz t + φ_leaf)`` (:func:`.detail.leaf_clusters.leaf_flap_offsets`);
     ``shape`` ``"cluster"`` (cards round the centre) or ``"frond"`` (a palm's leaflets in pairs
-    along the axis, :func:`.detail.leaf_clusters.frond_template`)."""
+    along the axis, :func:`.detail.leaf_clusters.frond_template`); ``flutter_hz`` ω / 2π of the
+    flutter (0: not recorded, a file from before it was)."""
 
     node: np.ndarray
     pos: np.ndarray
@@ -51,6 +52,7 @@ class LeafClusters:
     leaf_hz: float = 4.0
     leaf_angle: float = 0.26
     shape: str = "cluster"
+    flutter_hz: float = 0.0
 
     def scales(self) -> np.ndarray:
         """``(S,)`` size of each cluster relative to ``radius`` (1 when not set)."""
@@ -163,7 +165,8 @@ def _arrays(tree: Tree3D) -> dict:
         lv = tree.leaves
         meta["leaves"] = {"radius": float(lv.radius), "leaf_size": float(lv.leaf_size),
                           "cards": int(lv.cards), "seed": int(lv.seed), "leaf_hz": float(lv.leaf_hz),
-                          "leaf_angle": float(lv.leaf_angle), "shape": str(lv.shape)}
+                          "leaf_angle": float(lv.leaf_angle), "shape": str(lv.shape),
+                          "flutter_hz": float(lv.flutter_hz)}
         extra = {f"leaf_{k}": np.asarray(getattr(lv, k) if k != "scale" else lv.scales())
                  for k in LEAF_ARRAYS}
     return dict(parents=tree.parents.astype(np.int32), nodes3d=tree.nodes3d.astype(np.float32),

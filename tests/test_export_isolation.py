@@ -20,7 +20,7 @@ from trees import (
     binary_tree,
     broad_tree,
     empty_scene,  # noqa: F401  (autouse: a fresh scene per test)
-    expected,
+    played,
     pose_heads_dirs,
     tree_height,
 )
@@ -84,17 +84,18 @@ def test_gltf_after_generate_and_a_forest_is_the_same_animation(tmp_path):
 def test_fbx_after_generate_keeps_the_reconstructions_motion(tmp_path):
     tree = broad_tree(RECON_FRAMES)
     recon = build_tree(bpy.context, tree, "Reconstruction")
+    names = [f"B{c:03d}" for c in tree.edges()[:, 1]]
+    want = played(recon["armature"], names, (1, 17, 45, RECON_FRAMES))   # before the crowd arrives
     _crowd(bpy.context)
     path = export.export_fbx(tmp_path / "recon.fbx", tree_objects(recon["collection"]))
     bpy.ops.wm.read_factory_settings(use_empty=True)
     bpy.ops.import_scene.fbx(filepath=path)
     rigs = [ob for ob in bpy.context.scene.objects if ob.type == "ARMATURE"]
     assert len(rigs) == 1 and len(rigs[0].data.bones) == tree.n_nodes - 1
-    names = [f"B{c:03d}" for c in tree.edges()[:, 1]]
     tol = 1e-4 * tree_height(tree)
     for k in (1, 17, 45, RECON_FRAMES):
         bpy.context.scene.frame_set(k)
-        heads, _, dirs = expected(tree, k)
+        heads, _, dirs = want[k]
         got_heads, got_dirs = pose_heads_dirs(rigs[0], names)
         np.testing.assert_allclose(got_heads, heads, atol=tol)
         np.testing.assert_allclose(got_dirs, dirs, atol=1e-3)

@@ -17,7 +17,7 @@ from tree_from_video.operators.scene import build, export
 from trees import (
     broad_tree,
     empty_scene,  # noqa: F401  (autouse fixture)
-    expected,
+    played,
     pose_heads_dirs,
     pose_tails,
     tree_height,
@@ -54,6 +54,8 @@ def _leftovers(folder):
 # ----------------------------------------------------------------------------- FBX
 
 def test_fbx_round_trip_keeps_bones_and_pose(tree, built, tmp_path):
+    names = _names(tree)
+    want = played(built[0], names, (1, 13, 40, FRAMES))      # the rig's curves (core/keys.py), as played
     path = tmp_path / "tree.fbx"
     t0 = time.perf_counter()
     assert export.export_fbx(path, built) == str(path)
@@ -68,7 +70,6 @@ def test_fbx_round_trip_keeps_bones_and_pose(tree, built, tmp_path):
     rigs = [ob for ob in bpy.context.scene.objects if ob.type == "ARMATURE"]
     assert len(rigs) == 1
     rig = rigs[0]
-    names = _names(tree)
     assert sorted(b.name for b in rig.data.bones) == sorted(names)       # no leaf bones added
     # keys on the frames they were made on (issue 32: 1..F came back on 2..F+1)
     from tree_from_video.operators.scene.action_api import action_fcurves
@@ -78,7 +79,7 @@ def test_fbx_round_trip_keeps_bones_and_pose(tree, built, tmp_path):
     tol = 1e-4 * tree_height(tree)
     for k in (1, 13, 40, FRAMES):
         bpy.context.scene.frame_set(k)
-        heads, tails, dirs = expected(tree, k)
+        heads, tails, dirs = want[k]
         got_heads, got_dirs = pose_heads_dirs(rig, names)
         assert np.abs(got_heads - heads).max() <= tol, f"frame {k}: heads off"
         assert np.abs(got_dirs - dirs).max() <= 1e-4, f"frame {k}: bone directions off"

@@ -59,6 +59,13 @@ def test_leaf_bones_ride_their_branches_and_flutter(tree):
     for v in list(leaf_obj.data.vertices)[:: per // 2]:
         assert len(v.groups) == 1 and v.groups[0].weight == 1.0
         assert groups[v.groups[0].group] == names[v.index // per]
+    # the flutter Blender plays: one period of the steady sine under a Cycles modifier (core/keys.py)
+    cycle = built["keys"].cycle
+    played = cycle.played
+    curves = [fc for fc in action_api.action_fcurves(built["action"]) if fc.data_path.startswith('pose.bones["L')]
+    assert len(curves) == 2 * L.count
+    assert {len(fc.keyframe_points) for fc in curves} == {len(cycle.frames)}
+    assert {tuple(m.type for m in fc.modifiers) for fc in curves} == {("CYCLES",)}
     centres = leaf_clusters.leaf_centres(tree)
     tol = 1e-3 * tree_height(tree)
     mw = np.array(rig.matrix_world)
@@ -68,7 +75,7 @@ def test_leaf_bones_ride_their_branches_and_flutter(tree):
         err = np.abs(heads - centres[frame - 1]).max()
         assert err <= tol, (frame, err)
         q = np.array([rig.pose.bones[n].rotation_quaternion for n in names])
-        np.testing.assert_allclose(_rotation_angle_about(q, np.array([0.0, 1.0, 0.0])), L.flutter[frame - 1],
+        np.testing.assert_allclose(_rotation_angle_about(q, np.array([0.0, 1.0, 0.0])), played[frame - 1],
                                    atol=1e-4)
     # every leaf's own flap: four shape keys whose keyed weights rebuild sin(ωt + φ_leaf)
     keys = leaf_obj.data.shape_keys
@@ -123,6 +130,7 @@ def test_leaves_are_in_the_gltf_fbx_and_usd_exports_animated(tree, tmp_path):
     objects = [built["armature"], built["mesh"], built["leaves"]]
     names = _leaf_names(tree)
     L = tree.leaves
+    played = built["keys"].cycle.played              # the flutter Blender plays (and exports)
 
     # glTF: the leaf bones are joints of the skin, each rotation channel turns about one axis
     # by the flutter angle (up to its constant rest offset)
@@ -139,7 +147,7 @@ def test_leaves_are_in_the_gltf_fbx_and_usd_exports_animated(tree, tmp_path):
         rel *= np.where(rel[:, :1] < 0, -1.0, 1.0)                     # q and -q: the same rotation
         axis = np.linalg.svd(rel[:, 1:], full_matrices=False)[2][0]
         angle = _rotation_angle_about(rel, axis)
-        want = L.flutter[:, k] - L.flutter[0, k]
+        want = played[:, k] - played[0, k]
         err = min(np.abs(angle - want).max(), np.abs(angle + want).max())   # the axis sign is free
         worst = max(worst, err)
     print(f"\nglTF: {len(names)} leaf joints; flutter angle error ≤ {np.degrees(worst):.4f}°")

@@ -39,7 +39,7 @@ def _generate_props(frames: int = 0):
 def _rig_frames(coll) -> int:
     from tree_from_video.operators.scene.action_api import action_fcurves
     rig = next(o for o in coll.all_objects if o.type == "ARMATURE")
-    return max(len(fc.keyframe_points) for fc in action_fcurves(rig.animation_data.action))
+    return int(round(max(fc.range()[1] for fc in action_fcurves(rig.animation_data.action))))   # keys from frame 1
 
 
 def _new_tree_collections(before: set):

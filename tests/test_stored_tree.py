@@ -12,6 +12,7 @@ import pytest
 import report
 
 from tree_from_video.core.generate import species
+from tree_from_video.core.keys import KEY_TOLERANCE
 from tree_from_video.core.tree3d import tree_bytes, tree_from_bytes
 
 from samples import committed
@@ -78,7 +79,8 @@ def test_a_reopened_file_keeps_the_tree_its_species_and_its_overlay(addon, tmp_p
     mw = np.array(rig.matrix_world)
     tails = np.array([pb.tail for pb in rig.pose.bones if pb.name.startswith("B")]) @ mw[:3, :3].T + mw[:3, 3]
     child = np.array([int(pb.name[1:]) for pb in rig.pose.bones if pb.name.startswith("B")])
-    assert np.abs(tails - kept.nodes3d[11][child]).max() < 1e-4
+    H = float(np.ptp(kept.nodes3d[0][:, 2]))       # the curves play it within their tolerance (core/keys.py)
+    assert np.abs(tails - kept.nodes3d[11][child]).max() <= KEY_TOLERANCE * H + 1e-4
     expected = species.fit_species(kept, "oak")
     geometry = clip_overlay.frame_geometry(VIDEO, 7)
     assert geometry is not None and len(geometry[0]) > 100

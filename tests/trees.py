@@ -79,6 +79,18 @@ def pose_heads_dirs(rig, names) -> tuple[np.ndarray, np.ndarray]:
     return h, y / np.linalg.norm(y, axis=1, keepdims=True)
 
 
+def played(rig, names, frames) -> dict:
+    """What the built ``rig`` plays (its curves: reduced keys, samples, cycles) at each scene frame
+    of ``frames``: ``{frame: (heads, tails, dirs)}`` in world space — what an export must carry."""
+    import bpy
+    out = {}
+    for k in frames:
+        bpy.context.scene.frame_set(k)
+        heads, dirs = pose_heads_dirs(rig, names)
+        out[k] = (heads, pose_tails(rig, names), dirs)
+    return out
+
+
 def expected(tree: Tree3D, frame: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Heads, tails ``(B, 3)`` and unit directions of the bones at scene frame ``frame`` (1-based)."""
     edges = bones.bone_edges(tree.parents)

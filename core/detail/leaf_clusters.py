@@ -106,12 +106,12 @@ def make_clusters(tree, node: np.ndarray, pos: np.ndarray, colour: np.ndarray, d
     dist = np.linalg.norm(pos - rest[node], axis=1)
     beta = (2 * np.pi * dist / (4 * radius)) % (2 * np.pi)
     nyquist = 0.45 * float(tree.fps)                       # stay below Nyquist of the keyframes
-    flut = flutter_angles(tree, node, beta, min(p.flutter_hz, nyquist), p.flutter_gain,
-                          np.radians(p.flutter_max_deg))
+    hz = min(p.flutter_hz, nyquist)
+    flut = flutter_angles(tree, node, beta, hz, p.flutter_gain, np.radians(p.flutter_max_deg))
     return LeafClusters(node.astype(np.int32), pos.astype(np.float32), axis.astype(np.float32),
                         np.asarray(colour, np.float32), np.asarray(dark, bool), flut, float(radius),
                         float(0.55 * radius), int(cards), int(seed), scale, min(p.leaf_hz, nyquist),
-                        float(np.radians(p.leaf_angle_deg)))
+                        float(np.radians(p.leaf_angle_deg)), flutter_hz=float(hz))
 
 
 def as_fronds(tree, leaves):

@@ -56,33 +56,61 @@ def action_fcurves(action: bpy.types.Action) -> Iterator[bpy.types.FCurve]:
         yield from action.fcurves
 
 
-_LINEAR = None
+_ENUMS: dict = {}
 
 
-def write_keys(fcurve: bpy.types.FCurve, frames: np.ndarray, values: np.ndarray) -> None:
-    """Add one LINEAR key per ``(frames[i], values[i])`` to ``fcurve``, in bulk.
+def _enum(struct, prop: str, name: str) -> int:
+    key = (struct.__name__, prop, name)
+    if key not in _ENUMS:
+        _ENUMS[key] = struct.bl_rna.properties[prop].enum_items[name].value
+    return _ENUMS[key]
+
+
+def write_keys(fcurve: bpy.types.FCurve, frames: np.ndarray, values: np.ndarray,
+               handles: tuple[np.ndarray, np.ndarray] | None = None) -> None:
+    """Add one key per ``(frames[i], values[i])`` to ``fcurve``, in bulk: LINEAR, or with
+    ``handles`` (left, right: ``(F, 2)`` (frame, value) each) BEZIER keys with those FREE handles
+    (:func:`core.keys.handles`).
 
     ``frames (F,)`` scene frames, increasing; ``values (F,)`` in the property's unit.
     Uses ``keyframe_points.add`` + ``foreach_set`` (no per-key Python), then ``fcurve.update()``."""
-    global _LINEAR
-    if _LINEAR is None:
-        _LINEAR = bpy.types.Keyframe.bl_rna.properties["interpolation"].enum_items["LINEAR"].value
     frames = np.asarray(frames, np.float32).ravel()
     values = np.asarray(values, np.float32).ravel()
     if frames.shape != values.shape:
         raise ValueError(f"frames {frames.shape} and values {values.shape} differ in length")
+    kind = _enum(bpy.types.Keyframe, "interpolation", "LINEAR" if handles is None else "BEZIER")
     n = len(frames)
     points = fcurve.keyframe_points
     start = len(points)
     points.add(n)
     co = np.empty((start + n, 2), np.float32)
-    interp = np.full(start + n, _LINEAR, np.int32)
+    interp = np.full(start + n, kind, np.int32)
     if start:                                   # keep the keys that were there
         points.foreach_get("co", co.ravel())
         points.foreach_get("interpolation", interp)
-        interp[start:] = _LINEAR
+        interp[start:] = kind
     co[start:, 0] = frames
     co[start:, 1] = values
     points.foreach_set("co", co.ravel())
     points.foreach_set("interpolation", interp)
+    if handles is not None:
+        free = _enum(bpy.types.Keyframe, "handle_left_type", "FREE")
+        for side, h in zip(("left", "right"), handles):
+            kinds = np.empty(start + n, np.int32)
+            points.foreach_get(f"handle_{side}_type", kinds)
+            kinds[start:] = free
+            points.foreach_set(f"handle_{side}_type", kinds)
+            xy = np.empty((start + n, 2), np.float32)
+            points.foreach_get(f"handle_{side}", xy.ravel())
+            xy[start:] = np.asarray(h, np.float32).reshape(n, 2)
+            points.foreach_set(f"handle_{side}", xy.ravel())
     fcurve.update()
+
+
+def write_samples(fcurve: bpy.types.FCurve, first: int, values: np.ndarray) -> None:
+    """Store ``values (F,)`` as the F-curve's baked samples on the scene frames ``first ..
+    first + F - 1`` (``FCurve.convert_to_samples``: one float pair per frame, a quarter of a key's
+    bytes, played linearly between frames; the Graph Editor's *Unbake* turns them back into keys)."""
+    values = np.asarray(values, np.float32).ravel()
+    write_keys(fcurve, np.arange(first, first + len(values), dtype=np.float32), values)
+    fcurve.convert_to_samples(int(first), int(first) + len(values))

@@ -1,12 +1,13 @@
 """The tree's armature: one connected bone per edge at the frame-0 positions (built in one
-edit-mode session) and its pose keyed in QUATERNION mode at every frame, in bulk (``foreach_set``
+edit-mode session) and its pose keyed in QUATERNION mode where the motion needs keys
+(:mod:`core.keys`), in bulk (``foreach_set``
 for bones and keys, no per-key Python)."""
 from __future__ import annotations
 
 import bpy
 import numpy as np
 
-from ...core import bones
+from ...core import bones, keys
 from ...core.tree3d import Tree3D
 from . import action_api
 from .objects import Created, deselect_all
@@ -86,17 +87,32 @@ def _edit_bones(data, names: list[str], heads: np.ndarray, tails: np.ndarray, pa
 
 
 def key_pose(rig, local: np.ndarray, names: list[str], action_name: str, created: Created,
-             frames: np.ndarray | None = None):
+             frames: np.ndarray | None = None, keep: np.ndarray | None = None):
     """Key ``local (F, B, 4)`` quaternions on the rig's pose bones at scene ``frames (F,)`` (default
-    ``1..F``; a variable-frame-rate clip's keys sit at its frames' times, :func:`key_frames`)."""
+    ``1..F``; a variable-frame-rate clip's keys sit at its frames' times, :func:`key_frames`):
+    with ``keep (F, B)`` (:func:`core.keys.tree_keys`) a bone keeping every frame of an evenly timed
+    clip as baked samples, any other as Bezier keys on its kept frames with the handles that play
+    :func:`core.keys.interpolate`; without, LINEAR keys on every frame."""
     action, make_fcurve = action_api.new_action(rig, action_name)
     created.add(bpy.data.actions, action)
     frames = np.arange(1, len(local) + 1, dtype=np.float32) if frames is None else np.asarray(frames, np.float32)
     pose_index = {pb.name: i for i, pb in enumerate(rig.pose.bones)}
+    even = bool(np.all(np.diff(frames) == 1.0)) and float(frames[0]).is_integer()
+    sampled = keep.all(axis=0) & even if keep is not None else np.zeros(len(names), bool)
+    if keep is not None:
+        left, right = keys.handles(local, keep, frames)
     for b, name in enumerate(names):
         if name not in pose_index:
             raise RuntimeError(f"pose bone {name} is missing")
         path = f'pose.bones["{bpy.utils.escape_identifier(name)}"].rotation_quaternion'
         for i in range(4):
-            action_api.write_keys(make_fcurve(path, i, name), frames, local[:, b, i])
+            fc = make_fcurve(path, i, name)
+            if keep is None:
+                action_api.write_keys(fc, frames, local[:, b, i])
+            elif sampled[b]:
+                action_api.write_samples(fc, int(frames[0]), local[:, b, i])
+            else:
+                rows = keep[:, b]
+                action_api.write_keys(fc, frames[rows], local[rows, b, i],
+                                      (left[rows, b, i], right[rows, b, i]))
     return action, make_fcurve

@@ -14,7 +14,7 @@ import time
 import bpy
 import numpy as np
 
-from ...core import bones
+from ...core import bones, keys
 from ...core.detail import branch_mesh as bm
 from ...core.errors import InputError
 from ...core.tree3d import Tree3D, key_frames, last_key_frame
@@ -31,7 +31,7 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
                mesh: bool = True, sides: int = 8, leaves: bool = True,
                leaf_image: str | None = None, curliness: float | None = None,
                bark: str | None = None, materials: dict | None = None, update_frame: bool = True,
-               keep_view: bool = False) -> dict:
+               keep_view: bool = False, every_key: bool = False) -> dict:
     """Create the animated tree in a new collection ``collection_name`` under the scene collection
     (unselected, its rig active, at the scene's first frame; with ``keep_view`` the selection, the
     active object and the current frame stay as they were: a tree generated into a scene).
@@ -39,7 +39,9 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
     Creates an armature object ``"<name> Rig"`` (one bone per edge, ``"B{child:03d}"``, rest pose =
     tree frame 0, roll 0, connected to the parent bone; the bones in a hidden bone collection
     ``"Branches"``, so the viewport draws no sticks) whose pose bones are keyed in QUATERNION
-    mode at every scene frame ``1..F`` (LINEAR keys, action ``"<name> Sway"``); the first tree of
+    mode on the scene frames ``1..F`` where the motion needs a key (LINEAR keys, action
+    ``"<name> Sway"``: :func:`core.keys.tree_keys`, no node more than ``KEY_TOLERANCE`` of the
+    height off the full motion at any frame; ``every_key``: a key on every frame); the first tree of
     a scene sets its fps (``fps`` int + ``fps_base``) and frame range ``1..F``, a later one only
     grows the range to cover ``1..F`` (:func:`.timing.fit_scene_timing`); with ``mesh``, a branch mesh
     ``"<name> Branches"`` (tapered tubes with ``sides`` sides, one vertex group per bone, Armature
@@ -60,9 +62,10 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
 
     The new objects land unselected, the rig active.
 
-    Returns ``{"collection", "armature", "mesh" (or None), "action", "material" (or None),
-    "leaves" (or None), "leaf_polygons", "timings"}`` with ``timings`` in seconds (``rotations``,
-    ``keys``, ``armature``, ``mesh``, ``leaves``, ``total``)."""
+    Returns ``{"collection", "armature", "mesh" (or None), "action", "keys" (the kept keys,
+    :class:`core.keys.TreeKeys`, or None with ``every_key``), "material" (or None), "leaves" (or
+    None), "leaf_polygons", "timings"}`` with ``timings`` in seconds (``rotations``, ``key
+    reduction``, ``keys``, ``armature``, ``mesh``, ``leaves``, ``total``)."""
     t_total = time.perf_counter()
     _validate(tree, collection_name, sides)
     layer = context.view_layer                  # what keep_view restores (edit mode needs the rig active)
@@ -101,10 +104,15 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
         local = bones.local_rotations(tree.parents, tree.nodes3d, rest)
         timings["rotations"] = time.perf_counter() - t
         t = time.perf_counter()
+        frames = key_frames(tree)
+        kept = None if every_key else keys.tree_keys(tree, rest, frames, local=local)
+        timings["key reduction"] = time.perf_counter() - t
+        t = time.perf_counter()
         action, make_fcurve = armature.key_pose(rig, local, bones.bone_names(tree.parents), names["action"], created,
-                                                key_frames(tree))
+                                                frames, None if kept is None else kept.bones)
         if leaf_names:
-            leaf_build.key_leaf_bones(rig, make_fcurve, tree, leaf_names)
+            leaf_build.key_leaf_bones(rig, make_fcurve, tree, leaf_names, frames, None if kept is None else kept.leaves,
+                                      None if kept is None else kept.cycle)
         timings["keys"] = time.perf_counter() - t
         render = scene.render
         saved = (render.fps, render.fps_base, scene.frame_start, scene.frame_end, scene.frame_current)
@@ -164,7 +172,7 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
         created.remove(context)
         raise
     timings["total"] = time.perf_counter() - t_total
-    return {"collection": coll, "armature": rig, "mesh": mesh_obj, "action": action,
+    return {"collection": coll, "armature": rig, "mesh": mesh_obj, "action": action, "keys": kept,
             "material": material, "leaves": leaf_obj,
             "leaf_polygons": tree.leaves.polygons if leaf_obj is not None else 0, "timings": timings}
 

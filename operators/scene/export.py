@@ -237,21 +237,27 @@ def _actions(objects) -> list:
 
 @contextmanager
 def _keys_from_zero(objects, enabled: bool = True):
-    """While exporting, every key of ``objects``' actions moved so the armature's first key is on
-    frame 0 (whole frames, handles too: the same curves, earlier); put back afterwards."""
+    """While exporting, every key and baked sample of ``objects``' actions moved so the armature's
+    first key is on frame 0 (whole frames, handles too: the same curves, earlier); put back
+    afterwards."""
     actions = _actions(objects) if enabled else []
-    curves = [fc for a in actions for fc in action_fcurves(a) if len(fc.keyframe_points)]
-    first = min((fc.keyframe_points[0].co[0] for fc in curves), default=0.0)
+    curves = [fc for a in actions for fc in action_fcurves(a) if len(fc.keyframe_points) or len(fc.sampled_points)]
+    first = min((fc.range()[0] for fc in curves), default=0.0)
     shift = -float(round(first))
+
+    def shifted(points, attrs, by: float) -> None:
+        for attr in attrs:
+            xy = np.empty(2 * len(points), np.float32)
+            points.foreach_get(attr, xy)
+            xy[0::2] += by
+            points.foreach_set(attr, xy)
 
     def move(by: float) -> None:
         for fc in curves:
-            pts = fc.keyframe_points
-            for attr in ("co", "handle_left", "handle_right"):
-                xy = np.empty(2 * len(pts), np.float32)
-                pts.foreach_get(attr, xy)
-                xy[0::2] += by
-                pts.foreach_set(attr, xy)
+            if len(fc.keyframe_points):
+                shifted(fc.keyframe_points, ("co", "handle_left", "handle_right"), by)
+            if len(fc.sampled_points):
+                shifted(fc.sampled_points, ("co",), by)
             fc.update()
     if shift:
         move(shift)

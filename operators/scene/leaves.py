@@ -14,6 +14,7 @@ import numpy as np
 
 from ...core import bones
 from ...core.detail.leaf_clusters import flap_weights, leaf_flap_offsets, leaf_mesh
+from ...core.keys import SteadyFlutter
 from ...core.tree3d import Tree3D
 from . import action_api
 from .materials import leaf_tint
@@ -69,16 +70,27 @@ def flutter_quaternions(angles: np.ndarray) -> np.ndarray:
     return q
 
 
-def key_leaf_bones(rig, make_fcurve, tree: Tree3D, names: list[str]) -> None:
-    """Key every leaf bone's flutter at scene frames ``1..F`` (LINEAR, bulk): only the W and Y
-    channels — a turn about the bone's own Y axis leaves X and Z at their rest value 0, and half
-    the F-curves is half the keying time of a leafy forest."""
-    q = flutter_quaternions(tree.leaves.flutter)
-    frames = np.arange(1, q.shape[0] + 1, dtype=np.float32)
+def key_leaf_bones(rig, make_fcurve, tree: Tree3D, names: list[str], frames: np.ndarray | None = None,
+                   keep: np.ndarray | None = None, cycle: SteadyFlutter | None = None) -> None:
+    """Key every leaf bone's flutter, LINEAR, in bulk: with ``cycle`` (:func:`core.keys.tree_keys`)
+    one period of its steady flutter from the first frame, repeated by a *Cycles* modifier; else at
+    scene ``frames (F,)`` (default ``1..F``), only those of ``keep (F, S)`` (default every frame).
+    Only the W and Y channels — a turn about the bone's own Y axis leaves X and Z at their rest
+    value 0, and half the F-curves is half the keying time of a leafy forest."""
+    frames = np.arange(1, tree.n_frames + 1, dtype=np.float32) if frames is None else np.asarray(frames, np.float32)
+    if cycle is not None:
+        q = flutter_quaternions(cycle.angles)
+        frames, keep = (frames[0] + cycle.frames).astype(np.float32), None
+    else:
+        q = flutter_quaternions(tree.leaves.flutter)
     for s, name in enumerate(names):
         path = f'pose.bones["{bpy.utils.escape_identifier(name)}"].rotation_quaternion'
+        rows = slice(None) if keep is None else keep[:, s]
         for i in (0, 2):
-            action_api.write_keys(make_fcurve(path, i, name), frames, q[:, s, i])
+            fc = make_fcurve(path, i, name)
+            action_api.write_keys(fc, frames[rows], q[rows, s, i])
+            if cycle is not None:
+                fc.modifiers.new("CYCLES")
 
 
 def build_leaf_mesh(tree: Tree3D, rig, coll, name: str, names: list[str], material, created):
