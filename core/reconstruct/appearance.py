@@ -12,7 +12,6 @@ import cv2
 import numpy as np
 
 from ..outline import Outline
-from .video import area_resize
 
 _IDENTITY = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
 
@@ -53,10 +52,11 @@ class AppearanceAccumulator:
         self.feed(cv2.cvtColor(frame0, cv2.COLOR_BGR2GRAY), np.array([[1.0, 0, 0], [0, 1.0, 0]]))
 
     def shrink(self, gray: np.ndarray) -> np.ndarray:
-        """A grey frame ``(H, W)`` uint8 at the working size (:func:`.video.area_resize`; reads
-        only what is fixed at construction: another thread may shrink the next frame while one is
-        fed)."""
-        return area_resize(gray, self.size)
+        """A grey frame ``(H, W)`` uint8 at the working size (reads only what is fixed at
+        construction: another thread may shrink the next frame while one is fed). A direct area
+        resize: shrinking by exact halvings first (4 × faster at 1080p) changed the maps enough to
+        move the real palm-from-below's skeleton (772 → 840 nodes, motion 0.73 → 0.67)."""
+        return gray if self.factor == 1.0 else cv2.resize(gray, self.size, interpolation=cv2.INTER_AREA)
 
     def feed(self, gray: np.ndarray | None, cam: np.ndarray, small: np.ndarray | None = None) -> None:
         """Add one frame's grey image ``(H, W)`` uint8 (or None with ``small``, its :meth:`shrink`);

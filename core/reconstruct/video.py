@@ -114,20 +114,6 @@ def iter_frames(info: VideoInfo, start: int = 0, stop: int | None = None,
         cap.release()
 
 
-def area_resize(image: np.ndarray, size: tuple[int, int]) -> np.ndarray:
-    """``image`` shrunk to ``size`` (width, height) by area averaging: halved by OpenCV's exact
-    2 × 2 box path while still at least twice the size, then one area resize. An antialiased box
-    average like a direct ``INTER_AREA`` resize (its kernel a little different: 1–3 grey levels
-    apart on average on a real 1080p crown's fine texture), which costs 2.3 ms on a 1080p grey
-    frame against 0.4–0.9 ms this way (a non-integer area resize is OpenCV's slow path)."""
-    w, h = size
-    while image.shape[1] >= 2 * w and image.shape[0] >= 2 * h:
-        image = cv2.resize(image, (image.shape[1] // 2, image.shape[0] // 2), interpolation=cv2.INTER_AREA)
-    if image.shape[1::-1] == (w, h):
-        return image
-    return cv2.resize(image, (w, h), interpolation=cv2.INTER_AREA)
-
-
 def frame_times(stamps, fps: float) -> tuple[np.ndarray, float, str | None]:
     """Frame times ``(F,)`` seconds from the first frame, from the decoder's ``stamps`` where they
     are usable (finite, strictly increasing), else ``index / fps``; also the clip's frame rate
