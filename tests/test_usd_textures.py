@@ -89,13 +89,15 @@ def _asset_paths(layer):
 
 def test_fbx_embeds_the_leaf_texture_and_reimports_with_it(leafy, tmp_path):
     """Issue 32: the FBX dropped the leaf texture (``path_mode`` AUTO embeds nothing), so its leaves
-    imported white. Now it is embedded (COPY + embed_textures): the file holds one PNG, nothing is
-    written beside it, and re-imported into an empty Blender the leaf material shows that image."""
+    imported white. Now it is embedded (COPY + embed_textures): the file holds it as a PNG (bpy 5
+    writes three PNG signatures with the baked bark's two; Blender 4.3's file shows one, and its
+    re-import still finds the bark's images: tests/test_bark_texture.py), nothing is written beside
+    it, and re-imported into an empty Blender the leaf material shows its image."""
     path = tmp_path / "tree.fbx"
     export.export_fbx(path, leafy)
-    assert open(path, "rb").read().count(b"\x89PNG") == 1 and os.listdir(tmp_path) == ["tree.fbx"]
+    assert open(path, "rb").read().count(b"\x89PNG") >= 1 and os.listdir(tmp_path) == ["tree.fbx"]
     bpy.ops.wm.read_factory_settings(use_empty=True)
     bpy.ops.import_scene.fbx(filepath=str(path))
-    images = [n.image for m in bpy.data.materials if m.node_tree is not None for n in m.node_tree.nodes
-              if n.type == "TEX_IMAGE" and n.image is not None]
+    images = [n.image for m in bpy.data.materials if m.node_tree is not None and "Leaf" in m.name
+              for n in m.node_tree.nodes if n.type == "TEX_IMAGE" and n.image is not None]
     assert len(images) == 1 and images[0].size[0] >= 64 and images[0].packed_file is not None

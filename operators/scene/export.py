@@ -150,7 +150,7 @@ def _export(fmt: str, module, op_name: str, path, exts: tuple, objects, options:
     tmp = os.path.join(folder, f".{os.path.basename(path)}.{uuid.uuid4().hex[:8]}.tmp{ext}")
     try:
         with _own_scene(context, objects) as ctx, _selected(ctx, objects), _keys_from_zero(objects, keys_from_zero), \
-                _frame_range(ctx.scene, objects):
+                _frame_range(ctx.scene, objects), _baked_bark(objects):
             result = _run_operator(module, op_name, filepath=tmp, check_existing=False,
                                    **_supported(props, options))
         if "FINISHED" not in result:
@@ -309,6 +309,76 @@ def _keys_from_zero(objects, enabled: bool = True):
     finally:
         if shift:
             move(-shift)
+
+
+@contextmanager
+def _baked_bark(objects):
+    """While exporting, every bark material of ``objects`` (marked by :func:`.materials.bark_material`)
+    shows its baked images (:func:`core.detail.bark_texture.bark_textures`, packed): an albedo into
+    the Principled BSDF's Base Color and a tangent-space normal map into its Normal, in place of the
+    procedural nodes, which formats carrying images only drop (the bark arrived white in GLB and
+    FBX). The procedural links, the nodes and the images are put back / removed afterwards."""
+    from ...core.detail.bark_texture import bark_textures
+    from .materials import BARK_COLOUR_KEY, BARK_KEY
+    done: list = []
+    try:
+        for mat in _bark_materials(objects, BARK_KEY):
+            nt = mat.node_tree
+            bsdf = next((n for n in nt.nodes if n.type == "BSDF_PRINCIPLED"), None)
+            if bsdf is None:
+                continue
+            colour = mat.get(BARK_COLOUR_KEY)
+            tex = bark_textures(None if colour is None else tuple(colour), str(mat[BARK_KEY]))
+            entry = {"mat": mat, "nodes": [], "images": [], "links": []}
+            done.append(entry)
+            for socket in (bsdf.inputs["Base Color"], bsdf.inputs["Normal"]):
+                entry["links"] += [(lk.from_socket, lk.to_socket) for lk in socket.links]
+                for lk in list(socket.links):
+                    nt.links.remove(lk)
+            albedo = _packed_image(safe_name(f"{mat.name} albedo"), tex.albedo, "sRGB")   # names USD can
+            normal = _packed_image(safe_name(f"{mat.name} normal"), tex.normal, "Non-Color")  # use as files
+            entry["images"] += [albedo, normal]
+            a_node, n_node, map_node = (nt.nodes.new(t) for t in ("ShaderNodeTexImage", "ShaderNodeTexImage",
+                                                                  "ShaderNodeNormalMap"))
+            entry["nodes"] += [a_node, n_node, map_node]
+            a_node.image, n_node.image = albedo, normal
+            nt.links.new(a_node.outputs["Color"], bsdf.inputs["Base Color"])
+            nt.links.new(n_node.outputs["Color"], map_node.inputs["Color"])
+            nt.links.new(map_node.outputs["Normal"], bsdf.inputs["Normal"])
+        yield
+    finally:
+        for entry in reversed(done):
+            nt = entry["mat"].node_tree
+            for node in entry["nodes"]:
+                nt.nodes.remove(node)
+            for a, b in entry["links"]:
+                nt.links.new(a, b)
+            for img in entry["images"]:
+                bpy.data.images.remove(img)
+
+
+def _bark_materials(objects, key: str) -> list:
+    """The materials of ``objects`` marked with ``key``, each once."""
+    found: dict[int, bpy.types.Material] = {}
+    for ob in objects:
+        for slot in getattr(ob, "material_slots", ()):
+            mat = slot.material
+            if mat is not None and key in mat and mat.node_tree is not None:
+                found[mat.as_pointer()] = mat
+    return list(found.values())
+
+
+def _packed_image(name: str, rgb: np.ndarray, colorspace: str):
+    """A packed PNG image ``name`` of ``rgb (S, S, 3)`` uint8 (row 0 at the bottom, as UV v = 0)."""
+    h, w = rgb.shape[:2]
+    img = bpy.data.images.new(name, w, h, alpha=False)
+    img.colorspace_settings.name = colorspace
+    rgba = np.ones((h, w, 4), np.float32)
+    rgba[..., :3] = rgb.astype(np.float32) / 255.0
+    img.pixels.foreach_set(rgba.ravel())
+    img.file_format = "PNG"
+    img.pack()
+    return img
 
 
 @contextmanager

@@ -9,15 +9,14 @@ import bpy
 import numpy as np
 
 from ...core.detail.albedo import srgb_to_linear
+from ...core.detail.bark_texture import BARK_LOOK, BARK_RAMP, bark_ramp  # noqa: F401  (BARK_RAMP: re-exported)
 from ...core.errors import InputError
 
 TEXTURE_SIZE = 128
 
-
-#: bark material by preset: (bump strength, furrow share of the relief)
-BARK_LOOK = {"none": (0.35, 0.0), "smooth": (0.2, 0.15), "rough": (0.6, 0.6)}
-#: the bark's colour ramp, dark and light end (linear RGBA), driven by noise of mean ½
-BARK_RAMP = ((0.07, 0.055, 0.045, 1.0), (0.33, 0.29, 0.25, 1.0))
+#: custom properties of a bark material: its kind, and the video's bark colour (sRGB) if any
+BARK_KEY = "tree_video_bark"
+BARK_COLOUR_KEY = "tree_video_bark_colour"
 
 
 def principled_nodes(mat):
@@ -42,6 +41,9 @@ def bark_material(name: str, kind: str = "none", colour=None) -> bpy.types.Mater
     try:
         mat.diffuse_color = bark_colour(colour)              # solid-view colour: the bark's own
         mat.roughness = 0.9
+        mat[BARK_KEY] = kind                                 # what an export bakes to images
+        if colour is not None:
+            mat[BARK_COLOUR_KEY] = [float(c) for c in np.asarray(colour, np.float64)[:3]]
         nt, out, bsdf = principled_nodes(mat)
         coord = nt.nodes.new("ShaderNodeTexCoord")
         mapping = nt.nodes.new("ShaderNodeMapping")
@@ -87,17 +89,6 @@ def bark_material(name: str, kind: str = "none", colour=None) -> bpy.types.Mater
         bpy.data.materials.remove(mat)
         raise
     return mat
-
-
-def bark_ramp(colour=None) -> tuple:
-    """The bark's colour ramp, dark and light end (linear RGBA): :data:`BARK_RAMP`, or for
-    ``colour`` (sRGB 0..1, the video's bark albedo) the same ramp scaled so its middle is that
-    colour (dark end 0.35 ×, light end 1.65 × it, the default ramp's proportions)."""
-    if colour is None:
-        return BARK_RAMP
-    mid = srgb_to_linear(np.clip(np.asarray(colour, np.float64), 0.0, 1.0))
-    dark, light = (np.clip(mid * k, 0.0, 1.0) for k in (0.35, 1.65))
-    return (*dark.tolist(), 1.0), (*light.tolist(), 1.0)
 
 
 def bark_colour(colour=None) -> tuple:
