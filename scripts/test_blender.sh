@@ -64,6 +64,10 @@ shot export 1600x900 40 export_shot.py "the modal export did not write the selec
   "export invoke returned {'RUNNING_MODAL'}" "exporting 'Forest 001' (2/2)" \
   "export written: ['Forest_000.glb', 'Forest_001.glb']" "ui ready"
 
+echo "== Blender 4.3 GUI: a tree's GLB re-imported beside it, Material Preview: the bark's colours within 10 %"
+shot reimport 1400x900 35 reimport_shot.py "the re-imported GLB's bark does not look like the original in Material Preview" \
+  "bark colours within 10%: True" "ui ready"
+
 echo "== Blender 4.3 GUI: Track & Preview drawn over the clip in the Movie Clip editor"
 shot clip 1600x900 15 clip_shot.py "Track & Preview did not open the clip editor in the GUI" "preview: {'FINISHED'}" \
   "clip editor opened by the operator: clip video.mp4, frame 1" "sidebar True on tab 'Tree'" "clip ready"
