@@ -268,9 +268,14 @@ class TREE_OT_generate_forest(jobs.JobOperator, bpy.types.Operator):
         state = ForestBuild(context, self._name, *result, curliness=props.curliness, bark=props.bark)
         if self._timer is None and getattr(self, "_invoked", False):
             self._pending = state
+            # still a running job while the trees are built: the other buttons stay greyed and
+            # the status shows the building from its first tree on (issue 32: nothing showed
+            # between growing and building, and the buttons were enabled again)
+            self._job = jobs.hold(jobs.Busy())
             wm = context.window_manager
             self._timer = wm.event_timer_add(0.01, window=context.window)
             wm.progress_begin(0, 100)
+            jobs.status(context, f"building 0/{len(state.trees)}", 0.0)
             return {"RUNNING_MODAL"}
         try:
             while not state.finished:

@@ -153,6 +153,19 @@ class SteppedJob:
         return True
 
 
+class Busy:
+    """A main-thread phase of a job (a forest's trees built a few per tick after the worker grew
+    them) held in the running jobs, so every other button stays greyed until it ends: put it in
+    ``JobOperator._job`` and add it with :func:`hold`; ``_cleanup`` lets it go."""
+    done = False
+
+
+def hold(busy: Busy) -> Busy:
+    """Count ``busy`` among the running jobs (see :class:`Busy`)."""
+    _RUNNING.add(busy)
+    return busy
+
+
 def running() -> bool:
     """True while a job started by a :class:`JobOperator` is unfinished."""
     return any(not j.done for j in _RUNNING)

@@ -139,6 +139,10 @@ def test_leaves_are_in_the_gltf_fbx_and_usd_exports_animated(tree, tmp_path):
     doc, binary = read_glb(glb)
     joints = {doc["nodes"][j]["name"]: j for j in doc["skins"][0]["joints"]}
     assert set(names) <= set(joints)
+    # no empty node (issue 32 saw an empty "Leaves" one): each is a joint, a mesh or a parent
+    empty = [n.get("name") for i, n in enumerate(doc["nodes"])
+             if i not in joints.values() and "mesh" not in n and not n.get("children")]
+    assert empty == []
     worst = 0.0
     for k in range(0, L.count, 15):
         q = _glb_flutter(doc, binary, joints[names[k]])

@@ -99,3 +99,17 @@ def test_generate_says_which_species_or_shape_is_missing(addon, tmp_path, op):
 def test_save_species_and_export_without_a_tree_say_so(addon):
     assert "Reconstruct a tree first" in refused("save_species")
     assert "no tree" in refused("export")
+
+
+def test_a_forest_being_built_keeps_the_other_buttons_greyed(addon):
+    """Issue 32: between growing a forest (the worker) and building its trees (a few per tick on the
+    main thread) the job left the running jobs, so every other button came back. The build phase
+    now holds a ``jobs.Busy`` (generate_op.TREE_OT_generate_forest.done) until its last tree."""
+    busy = jobs.hold(jobs.Busy())
+    try:
+        assert jobs.running()
+        for op in ("reconstruct", "generate", "generate_forest"):
+            assert refused(op) == "a job is running; wait for it to finish or press Cancel", op
+    finally:
+        jobs._RUNNING.discard(busy)
+    assert not jobs.running()
