@@ -11,13 +11,14 @@ leaves existing files as they were. ``EXEC_DEFAULT`` (scripts, tests) runs it al
 from __future__ import annotations
 
 import os
+import time
 import uuid
 
 import bpy
 
 from ..core.errors import InputError
 from . import jobs
-from .scene import export, trees
+from .scene import export, export_process, trees
 
 EXTENSIONS = {"FBX": ".fbx", "GLB": ".glb", "USD": ".usdc"}
 #: the writer of each format in :mod:`.scene.export` (looked up when called)
@@ -119,11 +120,35 @@ def _remove_quietly(path: str) -> None:
         pass
 
 
-def export_steps(items, fmt: str, overwrite: bool, made_folder: bool):
+def _wait_one(running: list, left: int, n: int, so_far: float, total: float):
+    """Yield ``(stage, fraction)`` every tick until one of the ``running`` background exports ends;
+    remove it and return its size (its share of the fraction), or raise InputError if it failed."""
+    names = ", ".join(f"'{r[1]}'" for r in running)
+    while True:
+        for entry in running:
+            proc, name, size, tmp, path = entry
+            code = proc.poll()
+            if code is None:
+                continue
+            running.remove(entry)
+            message = proc.error() if code != 0 or not os.path.isfile(tmp) else None
+            proc.cleanup()
+            if message is not None:
+                raise InputError(f"'{name}': {message.replace(tmp, path)}; no file written")
+            return size
+        time.sleep(0.02)                    # a tick's poll, not a busy loop (execute runs it straight)
+        yield f"exporting {names} ({n - left - len(running) + 1}/{n})", so_far / total
+
+
+def export_steps(items, fmt: str, overwrite: bool, made_folder: bool, background: bool | None = None):
     """Generator for :class:`.jobs.SteppedJob`: exports tree by tree (``items`` from :func:`plan`)
     to temporary files, yielding ``(stage, fraction)`` before each (fraction by bones × frames),
     then renames them all to their paths; returns the paths. Closing it early removes the
-    temporary files (and the folder if it made it and it is empty)."""
+    temporary files (and the folder if it made it and it is empty). With ``background`` (default:
+    :func:`.scene.export_process.available`, a GUI session) each tree is written by a background
+    Blender (:data:`.scene.export_process.PARALLEL` at once) and the generator yields every tick
+    while they run, so the UI keeps drawing and Esc stops them."""
+    background = export_process.available() if background is None else background
     writer = getattr(export, WRITERS[fmt])
     names = [coll.name for coll, _ in items]
     sizes = [trees.tree_size(coll) for coll, _ in items]
@@ -131,8 +156,12 @@ def export_steps(items, fmt: str, overwrite: bool, made_folder: bool):
     staged: list = []
     written: list = []
     folder = os.path.dirname(items[0][1])
+    running: list = []                      # background exports: (process, name, size, tmp, path)
     try:
         for k, ((coll, path), name, size) in enumerate(zip(items, names, sizes)):
+            if background:                  # at most PARALLEL at once; the UI draws while they run
+                while len(running) >= export_process.PARALLEL:
+                    so_far += yield from _wait_one(running, len(items) - k, len(items), so_far, total)
             yield f"exporting '{name}' ({k + 1}/{len(items)})", so_far / total
             try:
                 objects = trees.tree_objects(coll)
@@ -140,11 +169,16 @@ def export_steps(items, fmt: str, overwrite: bool, made_folder: bool):
                 raise InputError(f"the tree '{name}' was deleted during the export; no file written") from None
             tmp = _staging_path(path)
             staged.append((tmp, path))
+            if background:
+                running.append((export_process.start(fmt, objects, tmp, overwrite), name, size, tmp, path))
+                continue
             try:
                 writer(tmp, objects, overwrite=overwrite, context=bpy.context)   # (USD: its textures/ too)
             except (InputError, export.ExportError) as exc:
                 raise InputError(f"'{name}': {str(exc).replace(tmp, path)}; no file written") from None
             so_far += size
+        while running:
+            so_far += yield from _wait_one(running, 0, len(items), so_far, total)
         if not overwrite:
             for _, path in staged:
                 if os.path.exists(path):
@@ -158,6 +192,8 @@ def export_steps(items, fmt: str, overwrite: bool, made_folder: bool):
             written.append(path)
         return written
     finally:
+        for proc, *_ in running:            # cancelled or failed: stop the others, nothing written
+            proc.cleanup()
         for tmp, _ in staged:
             if os.path.exists(tmp):
                 _remove_quietly(tmp)

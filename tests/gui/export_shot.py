@@ -64,6 +64,12 @@ def start_export():
         result = bpy.ops.tree_video.export("INVOKE_DEFAULT")
     print(f"export invoke returned {result} after {time.monotonic() - t:.2f} s", flush=True)
     state["t0"] = time.monotonic()
+    # the redraws while it runs (issue 32: an export froze Blender for 6-21 s a tree): a draw
+    # handler stamps every viewport draw, a timer asks for one every 0.05 s
+    state["draws"] = []
+    state["handler"] = bpy.types.SpaceView3D.draw_handler_add(lambda: state["draws"].append(time.monotonic()),
+                                                              (), "WINDOW", "POST_PIXEL")
+    state["area"] = area
     bpy.app.timers.register(watch, first_interval=0.02)
     return None
 
@@ -71,6 +77,7 @@ def start_export():
 def watch():
     wm = bpy.context.window_manager
     status = wm.tree_video_status
+    state["area"].tag_redraw()
     if status:
         if not state["seen"] or state["seen"][-1][0] != status:
             state["seen"].append((status, round(wm.tree_video_progress)))
@@ -78,6 +85,11 @@ def watch():
     if time.monotonic() - state["t0"] < 0.5:
         return 0.02
     print(f"export stages seen: {state['seen']}", flush=True)
+    bpy.types.SpaceView3D.draw_handler_remove(state["handler"], "WINDOW")
+    stamps = [state["t0"]] + [t for t in state["draws"] if t >= state["t0"]] + [time.monotonic()]
+    gap = max(b - a for a, b in zip(stamps, stamps[1:]))
+    print(f"export: {len(stamps) - 2} viewport draws in {stamps[-1] - stamps[0]:.1f} s, longest gap {gap:.2f} s", flush=True)
+    print(f"redraw gaps under 1 s: {gap < 1.0}", flush=True)
     files = sorted(os.listdir(OUT)) if os.path.isdir(OUT) else []
     print(f"export written: {files}", flush=True)
     bpy.app.timers.register(open_tree_tab(view, frame=20), first_interval=0.1)
