@@ -36,6 +36,13 @@ if [ $rc -ne 2 ] || ! grep -q "without USD" "$OUT/log" || [ -e "$OUT/usd" ]; the
 fi
 echo "batch under Blender 4.3: all files written; --usd refused clearly"
 
+echo "== Blender 4.3: the panel's export in background Blenders, and a failing worker"
+"$RB" run blender -b --factory-startup --python-exit-code 1 --python tests/blender/background_export.py \
+  > "$OUT/bg_export.log" 2>&1 || { tail -20 "$OUT/bg_export.log"; echo "background export check failed" >&2; exit 1; }
+grep -q "background export checks passed: True" "$OUT/bg_export.log" \
+  || { tail -20 "$OUT/bg_export.log"; echo "background export check failed" >&2; exit 1; }
+grep -E "^(background export|failed worker):" "$OUT/bg_export.log"
+
 # shot NAME WxH WAIT SCRIPT FAILURE PATTERN...: a GUI screenshot of tests/gui/SCRIPT into
 # $OUT/NAME.png (gui-shot fails on a blank capture); its log must contain every PATTERN.
 shot() {
