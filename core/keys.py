@@ -70,11 +70,6 @@ class ReducedKeys:
     error: float
     tolerance: float
 
-    @property
-    def share(self) -> float:
-        """Kept keys over all frames × bones."""
-        return float(self.keep.mean()) if self.keep.size else 1.0
-
 
 def bone_reach(parents: np.ndarray, rest_positions: np.ndarray, points: np.ndarray | None = None,
                point_bones: np.ndarray | None = None) -> np.ndarray:
@@ -228,9 +223,7 @@ def interpolate(q: np.ndarray, keep: np.ndarray, times: np.ndarray | None = None
     q = np.asarray(q, np.float64)
     F, B = keep.shape
     t = np.arange(F, dtype=np.float64) if times is None else np.asarray(times, np.float64)
-    idx = np.arange(F)[:, None]
-    prev = np.maximum.accumulate(np.where(keep, idx, -1), axis=0)                    # (F, B)
-    nxt = np.flip(np.minimum.accumulate(np.flip(np.where(keep, idx, F), 0), axis=0), 0)
+    prev, nxt = _kept_around(keep)
     prev, nxt = np.maximum(prev, 0), np.minimum(nxt, F - 1)
     span = np.maximum(t[nxt] - t[prev], 1e-12)
     w = (t[:, None] - t[prev]) / span
@@ -243,6 +236,16 @@ def interpolate(q: np.ndarray, keep: np.ndarray, times: np.ndarray | None = None
     return out / np.maximum(np.linalg.norm(out, axis=-1, keepdims=True), 1e-12)
 
 
+def _kept_around(keep: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(prev, next)``, each ``(F, B)``: at every frame the last kept frame at or before it (−1 when
+    none) and the first at or after it (``F`` when none)."""
+    F = len(keep)
+    idx = np.arange(F)[:, None]
+    prev = np.maximum.accumulate(np.where(keep, idx, -1), axis=0)
+    nxt = np.flip(np.minimum.accumulate(np.flip(np.where(keep, idx, F), 0), axis=0), 0)
+    return prev, nxt
+
+
 def handles(q: np.ndarray, keep: np.ndarray, times: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The Bezier handles of the kept keys that make Blender play :func:`interpolate`: ``(left,
     right)``, each ``(F, B, 4, 2)`` (frame, value) at every frame (read where ``keep``): a third of
@@ -252,12 +255,10 @@ def handles(q: np.ndarray, keep: np.ndarray, times: np.ndarray | None = None) ->
     F, B = keep.shape
     t = np.arange(F, dtype=np.float64) if times is None else np.asarray(times, np.float64)
     m = slopes(q, t)
-    idx = np.arange(F)[:, None]
-    kept_at = np.where(keep, idx, -1)
-    # the previous and next kept key of every kept key (itself excluded)
-    before = np.vstack([np.full((1, B), -1), np.maximum.accumulate(kept_at, axis=0)[:-1]])
-    after = np.vstack([np.flip(np.minimum.accumulate(np.flip(np.where(keep, idx, F), 0), axis=0), 0)[1:],
-                       np.full((1, B), F)])
+    prev, nxt = _kept_around(keep)
+    # the previous and next kept key of every kept key (itself excluded): one row earlier / later
+    before = np.vstack([np.full((1, B), -1), prev[:-1]])
+    after = np.vstack([nxt[1:], np.full((1, B), F)])
     dl = np.where(before >= 0, t[:, None] - t[np.maximum(before, 0)], 0.0)
     dr = np.where(after < F, t[np.minimum(after, F - 1)] - t[:, None], 0.0)
     dl, dr = np.where(dl > 0, dl, dr), np.where(dr > 0, dr, dl)            # the ends mirror
@@ -344,13 +345,20 @@ def _sampled_where_dense(keep: np.ndarray) -> np.ndarray:
     return keep
 
 
-def angle_keys(angles: np.ndarray, tol_rad: np.ndarray | float, times: np.ndarray | None = None) -> np.ndarray:
-    """``(F, S)`` bool: the frames that keep a turn by ``angles (F, S)`` radians about a fixed axis
-    (a leaf cluster's flutter) within ``tol_rad (S,)`` of its full curve when keyed linearly."""
+def flutter_quaternions(angles: np.ndarray) -> np.ndarray:
+    """``(..., 4)`` (w, x, y, z) rotations by ``angles (...)`` radians about the bone's Y axis (a
+    leaf cluster's flutter turn)."""
     half = 0.5 * np.asarray(angles, np.float64)
     q = np.zeros(half.shape + (4,))
     q[..., 0], q[..., 2] = np.cos(half), np.sin(half)
-    return reduce_keys(q, tol_rad, times)
+    return q
+
+
+def angle_keys(angles: np.ndarray, tol_rad: np.ndarray | float, times: np.ndarray | None = None) -> np.ndarray:
+    """``(F, S)`` bool: the frames that keep a turn by ``angles (F, S)`` radians about a fixed axis
+    (a leaf cluster's flutter) within ``tol_rad (S,)`` of its full curve when keyed linearly (as the
+    leaf bones are: ``operators/scene/leaves.py``)."""
+    return reduce_keys(flutter_quaternions(angles), tol_rad, times, smooth=False)
 
 
 @dataclass

@@ -176,3 +176,25 @@ def test_quat_mul_is_what_the_hand_case_assumes():
     """The hand cases build turns about one axis: composing two of them adds the angles."""
     q = quat_mul(_axis_angle([0, 0, 1], 0.2), _axis_angle([0, 0, 1], 0.3))
     np.testing.assert_allclose(q, _axis_angle([0, 0, 1], 0.5), atol=1e-12)
+
+
+def test_a_clip_too_short_for_a_cycle_keys_the_flutter_linearly_within_the_tolerance():
+    """Under two flutter periods there is no cycle: each cluster keeps the frames that hold its
+    cards within the tolerance when keyed LINEAR, as the leaf bones are — checked here by linear
+    interpolation of the quaternion channels through the kept frames, normalized."""
+    from tree_from_video import api
+    tree = api.generate("broad", n_frames=20, seed=5)[0]
+    lv = tree.leaves
+    assert lv is not None and tree.fps / lv.flutter_hz * 2 + 1 > tree.n_frames
+    kept = keys.tree_keys(tree, bones.rest_frames(tree.parents, tree.nodes3d[0]))
+    assert kept.cycle is None and kept.leaves is not None
+    q = keys.flutter_quaternions(lv.flutter)
+    t = np.arange(tree.n_frames, dtype=float)
+    worst = 0.0
+    for s in range(lv.count):
+        k = np.flatnonzero(kept.leaves[:, s])
+        qi = np.stack([np.interp(t, k, q[k, s, c]) for c in range(4)], axis=1)
+        qi /= np.linalg.norm(qi, axis=1, keepdims=True)
+        worst = max(worst, float(keys.rotation_angle(qi, q[:, s]).max()))
+    assert worst * (lv.radius + lv.leaf_size) <= kept.tolerance * (1 + 1e-9)
+    assert kept.leaves.mean() < 1.0

@@ -14,7 +14,7 @@ import numpy as np
 
 from ...core import bones
 from ...core.detail.leaf_clusters import flap_weights, leaf_flap_offsets, leaf_mesh
-from ...core.keys import SteadyFlutter
+from ...core.keys import SteadyFlutter, flutter_quaternions
 from ...core.tree3d import Tree3D
 from . import action_api
 from .materials import leaf_tint
@@ -59,15 +59,6 @@ def _edit_get(ebones, attr: str, n_old: int) -> np.ndarray:
     flat = np.empty(len(ebones) * 3, np.float32)
     ebones.foreach_get(attr, flat)
     return flat[: n_old * 3]
-
-
-def flutter_quaternions(angles: np.ndarray) -> np.ndarray:
-    """``(F, S, 4)`` (w, x, y, z) rotations by ``angles (F, S)`` radians about the bone's Y axis."""
-    half = 0.5 * np.asarray(angles, np.float64)
-    q = np.zeros(half.shape + (4,))
-    q[..., 0] = np.cos(half)
-    q[..., 2] = np.sin(half)
-    return q
 
 
 def key_leaf_bones(rig, make_fcurve, tree: Tree3D, names: list[str], frames: np.ndarray | None = None,
