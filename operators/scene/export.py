@@ -20,7 +20,6 @@ import numpy as np
 
 from ...core.errors import InputError
 from .action_api import action_fcurves
-from .objects import deselect_all
 from .timing import set_frame_range
 
 
@@ -149,7 +148,7 @@ def _export(fmt: str, module, op_name: str, path, exts: tuple, objects, options:
     ext = os.path.splitext(path)[1]
     tmp = os.path.join(folder, f".{os.path.basename(path)}.{uuid.uuid4().hex[:8]}.tmp{ext}")
     try:
-        with _own_scene(context, objects) as ctx, _selected(ctx, objects), _keys_from_zero(objects, keys_from_zero), \
+        with _own_scene(context, objects) as ctx, _keys_from_zero(objects, keys_from_zero), \
                 _frame_range(ctx.scene, objects), _baked_bark(objects):
             result = _run_operator(module, op_name, filepath=tmp, check_existing=False,
                                    **_supported(props, options))
@@ -175,9 +174,10 @@ EXPORT_SCENE = ".Tree from Video export"
 
 @contextmanager
 def _own_scene(context, objects):
-    """The export's own scene: a new scene holding only ``objects`` (linked, not copied) at the
-    user's scene's frame rate, the context pointing at it; removed afterwards, the objects left
-    where they were. The exporters evaluate their scene at every frame, and in the user's scene
+    """The export's own scene: a new scene holding only ``objects`` (linked, not copied; all
+    selected, the first armature active: what the exporters' "selected only" writes) at the user's
+    scene's frame rate, the context pointing at it; removed afterwards with its selection, the
+    objects left where they were in the user's scene. The exporters evaluate their scene at every frame, and in the user's scene
     that is every other tree of a forest too (issue 32: one tree's glTF export 6.5 s alone, 15.6 s
     beside a 12-tree forest)."""
     src = context.scene
@@ -194,11 +194,15 @@ def _own_scene(context, objects):
         scene.unit_settings.scale_length = src.unit_settings.scale_length
         for ob in objects:
             scene.collection.objects.link(ob)
+        layer = scene.view_layers[0]
+        for ob in objects:
+            ob.select_set(True, view_layer=layer)
+        layer.objects.active = next((ob for ob in objects if ob.type == "ARMATURE"), objects[0])
         # the window shows it too: the glTF exporter sets the window's scene to the context's, and
         # Blender 4.3 crashed doing that from a scene the window did not show
         if window is not None:
             window.scene = scene
-        with context.temp_override(window=window, scene=scene, view_layer=scene.view_layers[0]):
+        with context.temp_override(window=window, scene=scene, view_layer=layer):
             yield bpy.context
     finally:
         if window is not None and shown is not None:
@@ -219,32 +223,6 @@ def _remove_quietly(path: str) -> None:
         pass
 
 
-@contextmanager
-def _selected(context, objects):
-    """Select exactly ``objects`` (first armature active) in the view layer; restore afterwards."""
-    view_layer = context.view_layer
-    before = [ob for ob in view_layer.objects if ob is not None and ob.select_get()]
-    active = view_layer.objects.active
-    missing = [ob.name for ob in objects if view_layer.objects.get(ob.name) is None]
-    if missing:
-        raise InputError(f"{', '.join(missing)} not in the current view layer; include the tree's collection")
-    try:
-        for ob in before:
-            ob.select_set(False)
-        for ob in objects:
-            ob.select_set(True)
-        view_layer.objects.active = next((ob for ob in objects if ob.type == "ARMATURE"), objects[0])
-        yield
-    finally:
-        deselect_all(view_layer)
-        for ob in before:
-            try:
-                ob.select_set(True)
-            except ReferenceError:
-                pass
-        view_layer.objects.active = active
-
-
 def safe_name(name: str) -> str:
     """``name`` as a file-name stem of ASCII letters, digits, ``_`` and ``-`` ("Tree video Leaf
     Texture" → "Tree_video_Leaf_Texture")."""
@@ -252,18 +230,25 @@ def safe_name(name: str) -> str:
     return stem or "texture"
 
 
-def _object_images(objects) -> list:
-    """The images used by the materials of ``objects`` (image texture nodes), each once."""
-    found: dict[int, bpy.types.Image] = {}
+def _materials(objects) -> list:
+    """The node materials of ``objects``' material slots, each once."""
+    found: dict[int, bpy.types.Material] = {}
     for ob in objects:
         for slot in getattr(ob, "material_slots", ()):
             mat = slot.material
-            if mat is None or mat.node_tree is None:
-                continue
-            for node in mat.node_tree.nodes:
-                img = getattr(node, "image", None)
-                if node.type == "TEX_IMAGE" and img is not None:
-                    found[img.as_pointer()] = img
+            if mat is not None and mat.node_tree is not None:
+                found[mat.as_pointer()] = mat
+    return list(found.values())
+
+
+def _object_images(objects) -> list:
+    """The images used by the materials of ``objects`` (image texture nodes), each once."""
+    found: dict[int, bpy.types.Image] = {}
+    for mat in _materials(objects):
+        for node in mat.node_tree.nodes:
+            img = getattr(node, "image", None)
+            if node.type == "TEX_IMAGE" and img is not None:
+                found[img.as_pointer()] = img
     return list(found.values())
 
 
@@ -319,10 +304,15 @@ def _baked_bark(objects):
     procedural nodes, which formats carrying images only drop (the bark arrived white in GLB and
     FBX). The procedural links, the nodes and the images are put back / removed afterwards."""
     from ...core.detail.bark_texture import bark_textures
-    from .materials import BARK_COLOUR_KEY, BARK_KEY
+    from .materials import BARK_COLOUR_KEY, BARK_KEY, packed_image
+
+    def rgba(rgb):                  # uint8 (S, S, 3), row 0 at the bottom (UV v = 0) → float RGBA
+        out = np.ones(rgb.shape[:2] + (4,), np.float32)
+        out[..., :3] = rgb / 255.0
+        return out
     done: list = []
     try:
-        for mat in _bark_materials(objects, BARK_KEY):
+        for mat in (m for m in _materials(objects) if BARK_KEY in m):
             nt = mat.node_tree
             bsdf = next((n for n in nt.nodes if n.type == "BSDF_PRINCIPLED"), None)
             if bsdf is None:
@@ -335,8 +325,8 @@ def _baked_bark(objects):
                 entry["links"] += [(lk.from_socket, lk.to_socket) for lk in socket.links]
                 for lk in list(socket.links):
                     nt.links.remove(lk)
-            albedo = _packed_image(safe_name(f"{mat.name} albedo"), tex.albedo, "sRGB")   # names USD can
-            normal = _packed_image(safe_name(f"{mat.name} normal"), tex.normal, "Non-Color")  # use as files
+            albedo = packed_image(safe_name(f"{mat.name} albedo"), rgba(tex.albedo), "sRGB", False)   # names USD
+            normal = packed_image(safe_name(f"{mat.name} normal"), rgba(tex.normal), "Non-Color", False)  # can use
             entry["images"] += [albedo, normal]
             a_node, n_node, map_node = (nt.nodes.new(t) for t in ("ShaderNodeTexImage", "ShaderNodeTexImage",
                                                                   "ShaderNodeNormalMap"))
@@ -355,30 +345,6 @@ def _baked_bark(objects):
                 nt.links.new(a, b)
             for img in entry["images"]:
                 bpy.data.images.remove(img)
-
-
-def _bark_materials(objects, key: str) -> list:
-    """The materials of ``objects`` marked with ``key``, each once."""
-    found: dict[int, bpy.types.Material] = {}
-    for ob in objects:
-        for slot in getattr(ob, "material_slots", ()):
-            mat = slot.material
-            if mat is not None and key in mat and mat.node_tree is not None:
-                found[mat.as_pointer()] = mat
-    return list(found.values())
-
-
-def _packed_image(name: str, rgb: np.ndarray, colorspace: str):
-    """A packed PNG image ``name`` of ``rgb (S, S, 3)`` uint8 (row 0 at the bottom, as UV v = 0)."""
-    h, w = rgb.shape[:2]
-    img = bpy.data.images.new(name, w, h, alpha=False)
-    img.colorspace_settings.name = colorspace
-    rgba = np.ones((h, w, 4), np.float32)
-    rgba[..., :3] = rgb.astype(np.float32) / 255.0
-    img.pixels.foreach_set(rgba.ravel())
-    img.file_format = "PNG"
-    img.pack()
-    return img
 
 
 @contextmanager

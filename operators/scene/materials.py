@@ -146,8 +146,17 @@ def leaf_image(name: str, path: str | None, tint=(1.0, 1.0, 1.0)):
             bpy.data.images.remove(img)
             raise
         return img
-    img = bpy.data.images.new(f"{name} Texture", TEXTURE_SIZE, TEXTURE_SIZE, alpha=True)
-    img.pixels.foreach_set(leaf_texture_pixels(tint=tint).ravel())
+    return packed_image(f"{name} Texture", leaf_texture_pixels(tint=tint))
+
+
+def packed_image(name: str, rgba: np.ndarray, colorspace: str | None = None, alpha: bool = True):
+    """A new image ``name`` of ``rgba (H, W, 4)`` float pixels (row 0 at the bottom), packed as PNG
+    into the .blend (exporters embed it); ``colorspace`` e.g. "Non-Color" for a normal map."""
+    h, w = rgba.shape[:2]
+    img = bpy.data.images.new(name, w, h, alpha=alpha)
+    if colorspace is not None:
+        img.colorspace_settings.name = colorspace
+    img.pixels.foreach_set(np.asarray(rgba, np.float32).ravel())
     img.file_format = "PNG"
     img.pack()
     return img
