@@ -45,7 +45,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .bones import bone_depths, bone_edges, bone_parents, pose
+from .bones import bone_depths, bone_edges, bone_parents, local_rotations, pose
 from .rotations import quat_rotate
 
 #: the largest error the reduced keys may add to any node's position, a share of the tree height
@@ -465,7 +465,6 @@ def tree_keys(tree, rest_matrices: np.ndarray, times: np.ndarray | None = None,
     (:func:`steady_flutter`), or where it cannot be, each cluster's frames so that its cards
     (within ``radius + leaf_size`` of the bone's axis) stray at most the same tolerance beyond
     where their branch carries them."""
-    from .bones import local_rotations
     rest = np.asarray(tree.nodes3d[0], np.float64)
     if local is None:
         local = local_rotations(tree.parents, tree.nodes3d, rest_matrices)

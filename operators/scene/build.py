@@ -39,9 +39,9 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
     Creates an armature object ``"<name> Rig"`` (one bone per edge, ``"B{child:03d}"``, rest pose =
     tree frame 0, roll 0, connected to the parent bone; the bones in a hidden bone collection
     ``"Branches"``, so the viewport draws no sticks) whose pose bones are keyed in QUATERNION
-    mode on the scene frames ``1..F`` where the motion needs a key (LINEAR keys, action
-    ``"<name> Sway"``: :func:`core.keys.tree_keys`, no node more than ``KEY_TOLERANCE`` of the
-    height off the full motion at any frame; ``every_key``: a key on every frame); the first tree of
+    mode on the scene frames ``1..F`` where the motion needs a key (action ``"<name> Sway"``:
+    :func:`core.keys.tree_keys`, Bezier keys or baked samples, no node more than ``KEY_TOLERANCE``
+    of the height off the full motion at any frame; ``every_key``: a LINEAR key on every frame); the first tree of
     a scene sets its fps (``fps`` int + ``fps_base``) and frame range ``1..F``, a later one only
     grows the range to cover ``1..F`` (:func:`.timing.fit_scene_timing`); with ``mesh``, a branch mesh
     ``"<name> Branches"`` (tapered tubes with ``sides`` sides, one vertex group per bone, Armature
