@@ -120,24 +120,47 @@ def _remove_quietly(path: str) -> None:
         pass
 
 
-def _wait_one(running: list, left: int, n: int, so_far: float, total: float):
-    """Yield ``(stage, fraction)`` every tick until one of the ``running`` background exports ends;
-    remove it and return its size (its share of the fraction), or raise InputError if it failed."""
-    names = ", ".join(f"'{r[1]}'" for r in running)
-    while True:
-        for entry in running:
-            proc, name, size, tmp, path = entry
-            code = proc.poll()
+def _background(items, names: list[str], sizes: list[float], fmt: str, overwrite: bool,
+                staged: list, running: list, total: float):
+    """Yield ``(stage, fraction)`` every tick while background Blenders write ``items`` to staging
+    files (the trees shared among :data:`.scene.export_process.PARALLEL` processes by size, each
+    writing its trees one after another); ``staged`` gets (staging file, path) per tree and
+    ``running`` the processes while they run. Raises InputError naming the tree that failed."""
+    jobs = []
+    for (coll, path), name in zip(items, names):
+        try:
+            objects = trees.tree_objects(coll)
+        except ReferenceError:
+            raise InputError(f"the tree '{name}' was deleted during the export; no file written") from None
+        tmp = _staging_path(path)
+        staged.append((tmp, path))
+        jobs.append((objects, tmp))
+    for part in export_process.split(sizes):
+        running.append([export_process.start(fmt, [jobs[i] for i in part], overwrite), part, 0])
+    n, finished, so_far = len(items), 0, 0.0
+    while running:
+        for entry in list(running):
+            proc, part, seen = entry
+            code = proc.poll()                  # before done(): an exit then counts every line
+            done = proc.done()
+            for i in part[seen:done]:
+                so_far += sizes[i]
+                finished += 1
+            entry[2] = done
             if code is None:
                 continue
             running.remove(entry)
-            message = proc.error() if code != 0 or not os.path.isfile(tmp) else None
+            failed = code != 0 or done < len(part) or not all(os.path.isfile(jobs[i][1]) for i in part)
+            message = proc.error() if failed else None
             proc.cleanup()
             if message is not None:
-                raise InputError(f"'{name}': {message.replace(tmp, path)}; no file written")
-            return size
-        time.sleep(0.02)                    # a tick's poll, not a busy loop (execute runs it straight)
-        yield f"exporting {names} ({n - left - len(running) + 1}/{n})", so_far / total
+                i = part[min(done, len(part) - 1)]
+                raise InputError(f"'{names[i]}': {message.replace(jobs[i][1], items[i][1])}; no file written")
+        if running:
+            time.sleep(0.02)                # a tick's poll, not a busy loop (execute runs it straight)
+            now = ", ".join(f"'{names[i]}'" for i in sorted(part[seen] for _, part, seen in running if seen < len(part)))
+            yield (f"exporting {now} ({min(finished + 1, n)}/{n})" if now else
+                   f"closing the background exports ({finished}/{n} written)"), so_far / total
 
 
 def export_steps(items, fmt: str, overwrite: bool, made_folder: bool, background: bool | None = None):
@@ -145,9 +168,10 @@ def export_steps(items, fmt: str, overwrite: bool, made_folder: bool, background
     to temporary files, yielding ``(stage, fraction)`` before each (fraction by bones × frames),
     then renames them all to their paths; returns the paths. Closing it early removes the
     temporary files (and the folder if it made it and it is empty). With ``background`` (default:
-    :func:`.scene.export_process.available`, a GUI session) each tree is written by a background
-    Blender (:data:`.scene.export_process.PARALLEL` at once) and the generator yields every tick
-    while they run, so the UI keeps drawing and Esc stops them."""
+    :func:`.scene.export_process.available`, a GUI session) the trees are written by background
+    Blenders (:data:`.scene.export_process.PARALLEL`, each writing its share one tree after
+    another) and the generator yields every tick while they run, so the UI keeps drawing and Esc
+    stops them."""
     background = export_process.available() if background is None else background
     writer = getattr(export, WRITERS[fmt])
     names = [coll.name for coll, _ in items]
@@ -156,29 +180,25 @@ def export_steps(items, fmt: str, overwrite: bool, made_folder: bool, background
     staged: list = []
     written: list = []
     folder = os.path.dirname(items[0][1])
-    running: list = []                      # background exports: (process, name, size, tmp, path)
+    running: list = []                      # background exports: [process, its items, how many done]
     try:
-        for k, ((coll, path), name, size) in enumerate(zip(items, names, sizes)):
-            if background:                  # at most PARALLEL at once; the UI draws while they run
-                while len(running) >= export_process.PARALLEL:
-                    so_far += yield from _wait_one(running, len(items) - k, len(items), so_far, total)
-            yield f"exporting '{name}' ({k + 1}/{len(items)})", so_far / total
-            try:
-                objects = trees.tree_objects(coll)
-            except ReferenceError:
-                raise InputError(f"the tree '{name}' was deleted during the export; no file written") from None
-            tmp = _staging_path(path)
-            staged.append((tmp, path))
-            if background:
-                running.append((export_process.start(fmt, objects, tmp, overwrite), name, size, tmp, path))
-                continue
-            try:
-                writer(tmp, objects, overwrite=overwrite, context=bpy.context)   # (USD: its textures/ too)
-            except (InputError, export.ExportError) as exc:
-                raise InputError(f"'{name}': {str(exc).replace(tmp, path)}; no file written") from None
-            so_far += size
-        while running:
-            so_far += yield from _wait_one(running, 0, len(items), so_far, total)
+        if background:
+            yield f"exporting {len(items)} trees in the background", 0.0
+            yield from _background(items, names, sizes, fmt, overwrite, staged, running, total)
+        else:
+            for k, ((coll, path), name, size) in enumerate(zip(items, names, sizes)):
+                yield f"exporting '{name}' ({k + 1}/{len(items)})", so_far / total
+                try:
+                    objects = trees.tree_objects(coll)
+                except ReferenceError:
+                    raise InputError(f"the tree '{name}' was deleted during the export; no file written") from None
+                tmp = _staging_path(path)
+                staged.append((tmp, path))
+                try:
+                    writer(tmp, objects, overwrite=overwrite, context=bpy.context)   # (USD: its textures/ too)
+                except (InputError, export.ExportError) as exc:
+                    raise InputError(f"'{name}': {str(exc).replace(tmp, path)}; no file written") from None
+                so_far += size
         if not overwrite:
             for _, path in staged:
                 if os.path.exists(path):

@@ -7,6 +7,7 @@ import os
 import struct
 
 import bpy
+import numpy as np
 import pytest
 
 from trees import (
@@ -372,3 +373,17 @@ def test_cancelling_the_modal_export_leaves_no_file(addon, tmp_path, how):
     assert op.reports == [({"INFO"}, "export cancelled; no file written")]
     assert not jobs.running() and wm.tree_video_status == "" and wm.timers == 0 and not wm.flags
     assert export_op.LAST_EXPORT == []
+
+
+def test_background_exports_share_the_trees_by_size():
+    """export_process.split: every tree in exactly one process, in its order, the largest first to
+    the lightest; the two totals as even as a greedy split makes them."""
+    from tree_from_video.operators.scene.export_process import split
+    assert split([5.0, 1, 1, 1, 1, 1], 2) == [[0], [1, 2, 3, 4, 5]]
+    assert split([3.0, 3, 2, 2, 2], 2) == [[0, 2, 4], [1, 3]]          # 7 and 5
+    assert split([1.0], 2) == [[0]]                                    # one tree: one process
+    sizes = [float(s) for s in np.random.default_rng(0).integers(100, 1000, 12)]
+    parts = split(sizes, 2)
+    assert sorted(i for p in parts for i in p) == list(range(12)) and all(p == sorted(p) for p in parts)
+    totals = [sum(sizes[i] for i in p) for p in parts]
+    assert abs(totals[0] - totals[1]) <= max(sizes)

@@ -1,17 +1,19 @@
-"""Run inside a background Blender (``blender -b TREE.blend --python export_worker.py -- JSON``) by
-:mod:`.export_process`: export the tree objects the file holds with this add-on's own writer
-(:mod:`.export`), so the user's Blender keeps drawing while a tree is written.
+"""Run inside a background Blender (``blender -b TREES.blend --python export_worker.py -- JSON``) by
+:mod:`.export_process`: export the trees the file holds, one file each, in order, with this
+add-on's own writer (:mod:`.export`), so the user's Blender keeps drawing while they are written.
 
 ``JSON``: ``{"root": the add-on's folder, "path": the parent's sys.path, "format": "FBX" | "GLB" |
-"USD", "out": the file to write, "objects": the objects' names, "overwrite": bool}``. Exit 0 when
-written; on bad input or a failed export one line ``TREE_VIDEO_ERROR: <message>`` and exit 2.
-Only the standard library and bpy are imported before the add-on is loaded from ``root`` (by
-``package_loader``, as ``batch.py`` loads it).
+"USD", "overwrite": bool, "jobs": [{"objects": a tree's object names, "out": its file}, ...]}``.
+After each file one line ``TREE_VIDEO_DONE: <job index>``; exit 0 when all are written; on bad
+input or a failed export one line ``TREE_VIDEO_ERROR: <message>`` and exit 2 (the files before it
+stay written: the caller removes them). Only the standard library and bpy are imported before the
+add-on is loaded from ``root`` (by ``package_loader``, as ``batch.py`` loads it).
 """
 import json
 import sys
 
 ERROR_PREFIX = "TREE_VIDEO_ERROR: "
+DONE_PREFIX = "TREE_VIDEO_DONE: "
 
 
 def main(args: dict) -> int:
@@ -24,22 +26,24 @@ def main(args: dict) -> int:
     export = load_module("operators.scene.export")
     errors = load_module("core.errors")
     scene = bpy.context.scene
-    objects = []
-    for name in args["objects"]:
-        ob = bpy.data.objects.get(name)
-        if ob is None:
-            print(f"{ERROR_PREFIX}the tree's object '{name}' is missing from its copy; no file written", flush=True)
-            return 2
-        if scene.collection.objects.get(ob.name) is None:
-            scene.collection.objects.link(ob)
-        objects.append(ob)
-    bpy.context.view_layer.update()
     writer = {"FBX": export.export_fbx, "GLB": export.export_gltf, "USD": export.export_usd}[args["format"]]
-    try:
-        writer(args["out"], objects, overwrite=bool(args.get("overwrite")))
-    except (errors.InputError, export.ExportError) as exc:
-        print(f"{ERROR_PREFIX}{exc}", flush=True)
-        return 2
+    for k, job in enumerate(args["jobs"]):
+        objects = []
+        for name in job["objects"]:
+            ob = bpy.data.objects.get(name)
+            if ob is None:
+                print(f"{ERROR_PREFIX}the tree's object '{name}' is missing from its copy; no file written", flush=True)
+                return 2
+            if scene.collection.objects.get(ob.name) is None:
+                scene.collection.objects.link(ob)
+            objects.append(ob)
+        bpy.context.view_layer.update()
+        try:
+            writer(job["out"], objects, overwrite=bool(args.get("overwrite")))
+        except (errors.InputError, export.ExportError) as exc:
+            print(f"{ERROR_PREFIX}{exc}", flush=True)
+            return 2
+        print(f"{DONE_PREFIX}{k}", flush=True)
     return 0
 
 

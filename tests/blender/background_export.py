@@ -67,6 +67,21 @@ job.run_here()
 print(f"failed worker: {job.error}", flush=True)
 if not job.error or "no file written" not in job.error or "does not exist" not in job.error or os.path.exists(gone):
     ok = False
+
+# one process writing two trees whose second fails: the error names it, the first is not left either
+from tree_from_video.operators.scene import export_process  # noqa: E402
+
+export_process.PARALLEL = 1
+os.makedirs(gone)
+pair = [(colls[0], os.path.join(out, "first.glb")), (colls[1], os.path.join(gone, "second.glb"))]
+job = jobs.SteppedJob(export_op.export_steps(pair, "GLB", False, False, background=True))
+job.tick()                                   # the worker starts
+shutil.rmtree(gone)
+job.run_here()
+left = [f for f in os.listdir(out) if f.startswith(("first", ".first"))]
+print(f"failed second tree: {job.error}; files left: {left}", flush=True)
+if not job.error or not job.error.startswith(f"'{colls[1].name}'") or left:
+    ok = False
 print(f"background export checks passed: {ok}", flush=True)
 shutil.rmtree(out, ignore_errors=True)
 sys.exit(0 if ok else 1)
