@@ -90,7 +90,7 @@ def test_selected_tree_is_exported_with_its_bones_only(addon, two_trees, tmp_pat
     path = str(tmp_path / "out" / "Small_Oak.glb")
     assert sorted(os.listdir(tmp_path / "out")) == ["Small_Oak.glb"]
     assert glb_bones(path) == rig_bones                                # its 31 bones, none of Broad's 234
-    assert export_op.LAST_EXPORT == [path] and os.path.isabs(path)     # the absolute path is reported
+    assert export_op.LAST_EXPORT.paths == [path] and os.path.isabs(path)     # the absolute path is reported
     assert [ob.name for ob in bpy.context.selected_objects if ob.name.startswith("Broad")] == []   # selection kept
     # the panel then shows what was written first, and the file it just wrote as a note, not an error
     from test_panel_layout import draw
@@ -136,7 +136,7 @@ def test_two_selected_trees_write_two_files(addon, two_trees, tmp_path):
     assert sorted(os.listdir(tmp_path)) == ["Broad.glb", "Small_Oak.glb"]
     assert len(glb_bones(tmp_path / "Small_Oak.glb")) == 31
     assert len(glb_bones(tmp_path / "Broad.glb")) == 234
-    assert export_op.LAST_EXPORT == [str(tmp_path / "Broad.glb"), str(tmp_path / "Small_Oak.glb")]
+    assert export_op.LAST_EXPORT.paths == [str(tmp_path / "Broad.glb"), str(tmp_path / "Small_Oak.glb")]
 
 
 def test_the_list_picks_a_generated_tree_or_a_forest(addon, tmp_path):
@@ -181,7 +181,7 @@ def _usd_of_a_leafy_tree(addon, export_op, coll, folder):
     assert any(o.name.endswith(" Leaves") for o in coll.objects)
     assert _export() == {"FINISHED"}
     usd = folder / f"{bpy.path.clean_name(coll.name)}.usdc"
-    assert export_op.LAST_EXPORT == [str(usd)]
+    assert export_op.LAST_EXPORT.paths == [str(usd)]
     assert not [f for f in os.listdir(folder) if f.startswith(".")]          # no temporary file left
     assert [f for f in os.listdir(folder / "textures") if f.endswith(".png")]  # the leaf image beside it
     from pxr import Usd
@@ -343,7 +343,14 @@ def test_invoke_exports_tree_by_tree_with_progress(addon, tmp_path):
     assert sorted(os.listdir(tmp_path / "out")) == names
     paths = [str(tmp_path / "out" / n) for n in names]
     # one status line that fits, whatever the count: the count and the folder (the panel lists them)
-    assert op.reports == [({"INFO"}, f"exported 3 files to {tmp_path / 'out'} (Export panel: Last export)")]
+    (level, message), = op.reports
+    export_op = _modules()[0]
+    total = export_op.LAST_EXPORT.total
+    assert message == f"exported 3 files to {tmp_path / 'out'} in {total:.0f} s (Export panel: Last export)"
+    # the time per tree and in all, for the panel: each tree's writer time, their sum within the whole
+    took = export_op.LAST_EXPORT.seconds
+    assert len(took) == 3 and all(t > 0 for t in took) and sum(took) <= total
+    assert export_op.LAST_EXPORT.timing() == f"{total:.0f} s in all, {min(took):.1f}–{max(took):.1f} s a tree"
     assert [len(glb_bones(p)) for p in paths] == [15, 31, 63]
 
 
@@ -372,7 +379,7 @@ def test_cancelling_the_modal_export_leaves_no_file(addon, tmp_path, how):
     assert os.listdir(tmp_path) == ["Ash.glb"] and old.read_bytes() == b"the user's file"
     assert op.reports == [({"INFO"}, "export cancelled; no file written")]
     assert not jobs.running() and wm.tree_video_status == "" and wm.timers == 0 and not wm.flags
-    assert export_op.LAST_EXPORT == []
+    assert export_op.LAST_EXPORT.paths == []
 
 
 def test_background_exports_share_the_trees_by_size():

@@ -83,7 +83,11 @@ class ExportProcess:
 
     def done(self) -> int:
         """How many of the jobs the worker reports written (they are written in order)."""
-        return sum(ln.startswith(DONE_PREFIX) for ln in self._lines())
+        return len(self.seconds())
+
+    def seconds(self) -> list[float]:
+        """Each written job's export time, s, as the worker reports it (in order)."""
+        return [float(ln.split()[-1]) for ln in self._lines() if ln.startswith(DONE_PREFIX)]
 
     def poll(self) -> int | None:
         return self.proc.poll()

@@ -4,13 +4,14 @@ add-on's own writer (:mod:`.export`), so the user's Blender keeps drawing while 
 
 ``JSON``: ``{"root": the add-on's folder, "path": the parent's sys.path, "format": "FBX" | "GLB" |
 "USD", "overwrite": bool, "jobs": [{"objects": a tree's object names, "out": its file}, ...]}``.
-After each file one line ``TREE_VIDEO_DONE: <job index>``; exit 0 when all are written; on bad
+After each file one line ``TREE_VIDEO_DONE: <job index> <seconds it took>``; exit 0 when all are written; on bad
 input or a failed export one line ``TREE_VIDEO_ERROR: <message>`` and exit 2 (the files before it
 stay written: the caller removes them). Only the standard library and bpy are imported before the
 add-on is loaded from ``root`` (by ``package_loader``, as ``batch.py`` loads it).
 """
 import json
 import sys
+import time
 
 ERROR_PREFIX = "TREE_VIDEO_ERROR: "
 DONE_PREFIX = "TREE_VIDEO_DONE: "
@@ -38,12 +39,13 @@ def main(args: dict) -> int:
                 scene.collection.objects.link(ob)
             objects.append(ob)
         bpy.context.view_layer.update()
+        start = time.perf_counter()
         try:
             writer(job["out"], objects, overwrite=bool(args.get("overwrite")))
         except (errors.InputError, export.ExportError) as exc:
             print(f"{ERROR_PREFIX}{exc}", flush=True)
             return 2
-        print(f"{DONE_PREFIX}{k}", flush=True)
+        print(f"{DONE_PREFIX}{k} {time.perf_counter() - start:.3f}", flush=True)
     return 0
 
 
