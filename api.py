@@ -22,7 +22,7 @@ import dataclasses
 import os
 from typing import Any
 
-from .core import pipeline
+from .core import formats, pipeline
 from .core.detail.twigs import TwigParams
 from .core.errors import Cancelled, InputError
 from .core.progress import ProgressFn
@@ -150,9 +150,6 @@ def build_tree(context, tree: Tree3D, name: str, **kw: Any) -> dict:
     return _build(context, tree, name, **kw)
 
 
-EXPORTERS = {".fbx": "fbx", ".glb": "gltf", ".usd": "usd", ".usda": "usd", ".usdc": "usd"}
-
-
 def export(tree_or_objects, path: str | os.PathLike, overwrite: bool = False) -> str:
     """Export to ``path``, the format from its extension (``.fbx``, ``.glb``, ``.usd``/``.usdc``/
     ``.usda``): a :func:`build_tree` result, a collection, objects, or a
@@ -163,9 +160,9 @@ def export(tree_or_objects, path: str | os.PathLike, overwrite: bool = False) ->
     from .operators.scene import export as ex
     from .operators.scene.objects import remove_collection
     path = bpy.path.abspath(os.fspath(path))
-    fmt = EXPORTERS.get(os.path.splitext(path)[1].lower())
+    fmt = formats.for_path(path)
     if fmt is None:
-        raise InputError(f"'{path}': unknown export format; end the name in {', '.join(sorted(EXPORTERS))}")
+        raise InputError(f"'{path}': unknown export format; end the name in {', '.join(formats.interchange_extensions())}")
     temp = None
     if isinstance(tree_or_objects, Tree3D):
         temp = build_tree(bpy.context, tree_or_objects, f"{tree_or_objects.name} export")
@@ -177,8 +174,8 @@ def export(tree_or_objects, path: str | os.PathLike, overwrite: bool = False) ->
             objects = list(tree_or_objects.all_objects)
         else:
             objects = list(tree_or_objects)
-        write = {"fbx": ex.export_fbx, "gltf": ex.export_gltf, "usd": ex.export_usd}[fmt]
-        write(path, objects, overwrite=overwrite)
+        assert fmt.writer is not None
+        getattr(ex, fmt.writer)(path, objects, overwrite=overwrite)
     finally:
         if temp is not None:
             remove_collection(temp["collection"])

@@ -29,6 +29,7 @@ from .core.detail.twigs import TwigParams
 from .core.envelope import envelope_from_meta
 from .core.errors import Cancelled, InputError
 from .core.fileio import atomic_savez
+from .core.formats import FORMATS
 from .core.generate import batch as gb
 from .core.generate import species
 from .core.params import spec
@@ -116,11 +117,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "plausible green where the video shows a dark or backlit silhouette), video (the raw "
                         "sample) or #RRGGBB (default %(default)s)")
     p.add_argument("--leaf-image", help="image of one leaf (alpha = shape) instead of the procedural leaf")
-    p.add_argument("--fbx", action="store_true", help="write DIR/tree.fbx (armature + skinned mesh, baked animation)")
-    p.add_argument("--usd", action="store_true", help="write DIR/tree.usdc (needs a Blender built with USD)")
-    p.add_argument("--gltf", action="store_true", help="write DIR/tree.glb (glTF binary, animation from t = 0)")
-    p.add_argument("--blend", action="store_true", help="write DIR/tree.blend (the scene with the animated tree)")
-    p.add_argument("--preview", action="store_true", help="write DIR/preview.png (front and side renders of frame 1)")
+    for f in FORMATS:                      # the output formats' registry: --fbx --usd --gltf --blend --preview
+        p.add_argument(f"--{f.flag}", action="store_true", help=f.help.format(file=f.file))
     p.add_argument("--no-video", action="store_true", help="skip overlay.mp4 (overlay.png is still written)")
     p.add_argument("--force", action="store_true", help="overwrite existing output files in DIR")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
@@ -193,20 +191,16 @@ def _blender_outputs():
     try:
         import bpy  # noqa: F401
     except ImportError:
-        raise InputError("--fbx/--usd/--gltf/--blend/--preview need Blender's Python: run with the "
+        raise InputError(f"{'/'.join('--' + f.flag for f in FORMATS)} need Blender's Python: run with the "
                          "project's venv (make setup) or as blender -b --python batch.py -- ...") from None
     from .operators.scene import outputs
     return outputs
 
 
-EXPORT_FILES = (("fbx", "tree.fbx"), ("usd", "tree.usdc"), ("gltf", "tree.glb"), ("blend", "tree.blend"),
-                ("preview", "preview.png"))
-
-
 def _wanted(args) -> tuple[dict, list[str]]:
     """({format: bool}, file names) of the Blender exports asked for."""
-    wanted = {k: bool(getattr(args, k)) for k, _ in EXPORT_FILES}
-    return wanted, [n for k, n in EXPORT_FILES if wanted[k]]
+    wanted = {f.flag: bool(getattr(args, f.flag)) for f in FORMATS}
+    return wanted, [f.file for f in FORMATS if wanted[f.flag]]
 
 
 def _check_leaf_image(path: str | None) -> None:

@@ -14,7 +14,8 @@ generate/     reconstructed ``Tree3D``s → a species (``SpeciesModel``: Dirichl
 Shared by every stage, at this level: the tree model (``tree3d``: ``Tree3D``, ``LeafClusters``,
 and its ``meta`` keys in ``meta``), its bones (``bones``), topology helpers (``topology``),
 rotations (``rotations``), the envelope Ω (``envelope``), the outline (``outline``), file I/O
-(``fileio``: atomic npz/JSON), the product's defaults and ranges (``params``), errors, progress
+(``fileio``: atomic npz/JSON), the product's defaults and ranges (``params``), the output
+formats' registry every writer and front end reads (``formats``), errors, progress
 and background jobs. ``pipeline`` strings the stages end to end: ``run`` (the 2D stages) and
 ``build_3d`` (3D lift, motion, branch widths, twigs, leaves); between them ``with_limbs`` grows
 the limbs of a crown that shows no bark.

@@ -13,38 +13,16 @@ from __future__ import annotations
 import os
 import time
 import uuid
-from dataclasses import dataclass, field
 
 import bpy
 
 from ..core.errors import InputError
+from ..core.formats import by_key, interchange
 from . import jobs
 from .scene import export, export_process, trees
 
-EXTENSIONS = {"FBX": ".fbx", "GLB": ".glb", "USD": ".usdc"}
-#: the writer of each format in :mod:`.scene.export` (looked up when called)
-WRITERS = {"FBX": "export_fbx", "GLB": "export_gltf", "USD": "export_usd"}
-
-
-@dataclass
-class Exported:
-    """What an export wrote: ``paths`` (absolute), each tree's ``seconds`` (its writer's own time;
-    in a background Blender, without the process's start) and the ``total`` seconds from the
-    first tree to the last file renamed."""
-
-    paths: list = field(default_factory=list)
-    seconds: list = field(default_factory=list)
-    total: float = 0.0
-
-    def timing(self) -> str:
-        """``"56 s in all, 4.1–5.3 s a tree"``, or ``"4.2 s"`` for one tree."""
-        if len(self.seconds) < 2:
-            return f"{self.total:.1f} s"
-        return f"{self.total:.0f} s in all, {min(self.seconds):.1f}–{max(self.seconds):.1f} s a tree"
-
-
 #: the last finished export (shown in the panel)
-LAST_EXPORT = Exported()
+LAST_EXPORT = export.Exported()
 #: characters a typed file name cannot hold (path separators, and those Windows refuses)
 _UNSAFE = str.maketrans({c: "_" for c in '/\\:*?"<>|'})
 
@@ -89,7 +67,7 @@ def export_folder(props) -> str:
 def file_names(colls, props) -> list:
     """File names (with extension) of the trees ``colls``: the typed File Name for a single tree,
     else each tree's name cleaned (``Oak 001`` → ``Oak_001``), made unique."""
-    ext = EXTENSIONS[props.export_format]
+    ext = by_key(props.export_format).extension
     typed = props.export_name.strip() if len(colls) == 1 else ""
     if typed.lower().endswith(ext):
         typed = typed[:-len(ext)]
@@ -114,7 +92,7 @@ def plan(context, props) -> list:
     if not colls:
         raise InputError(why_not(context, props) or "no tree to export")
     folder = export_folder(props)
-    if props.export_format == "USD" and not export.has_usd():
+    if by_key(props.export_format).needs_usd and not export.has_usd():
         raise InputError("this Blender was built without USD; export FBX or glTF instead")
     paths = [os.path.join(folder, name) for name in file_names(colls, props)]
     if not props.overwrite:
@@ -188,14 +166,14 @@ def _background(items, names: list[str], sizes: list[float], fmt: str, overwrite
 def export_steps(items, fmt: str, overwrite: bool, made_folder: bool, background: bool | None = None):
     """Generator for :class:`.jobs.SteppedJob`: exports tree by tree (``items`` from :func:`plan`)
     to temporary files, yielding ``(stage, fraction)`` before each (fraction by bones × frames),
-    then renames them all to their paths; returns :class:`Exported`. Closing it early removes the
+    then renames them all to their paths; returns :class:`.scene.export.Exported`. Closing it early removes the
     temporary files (and the folder if it made it and it is empty). With ``background`` (default:
     :func:`.scene.export_process.available`, a GUI session) the trees are written by background
     Blenders (:data:`.scene.export_process.PARALLEL`, each writing its share one tree after
     another) and the generator yields every tick while they run, so the UI keeps drawing and Esc
     stops them."""
     background = export_process.available() if background is None else background
-    writer = getattr(export, WRITERS[fmt])
+    writer = getattr(export, by_key(fmt).writer)
     names = [coll.name for coll, _ in items]
     sizes = [trees.tree_size(coll) for coll, _ in items]
     total, so_far = float(sum(sizes)), 0
@@ -236,7 +214,7 @@ def export_steps(items, fmt: str, overwrite: bool, made_folder: bool, background
                 done = f"; written: {', '.join(written)}" if written else "; no file written"
                 raise InputError(f"cannot write '{path}' ({exc.strerror}); check the folder's permissions{done}") from None
             written.append(path)
-        return Exported(written, seconds, time.perf_counter() - start)
+        return export.Exported(written, seconds, time.perf_counter() - start)
     finally:
         for proc, *_ in running:            # cancelled or failed: stop the others, nothing written
             proc.cleanup()
@@ -410,7 +388,8 @@ class TREE_OT_export_dialog(bpy.types.Operator):
 
 
 def menu_export(self, context):
-    self.layout.operator(TREE_OT_export_dialog.bl_idname, text="Tree from Video (.fbx, .glb, .usdc)")
+    exts = ", ".join(f.extension for f in interchange())
+    self.layout.operator(TREE_OT_export_dialog.bl_idname, text=f"Tree from Video ({exts})")
 
 
 classes = (TREE_OT_export, TREE_OT_export_dialog)

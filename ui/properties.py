@@ -9,6 +9,7 @@ import bpy
 from ..core.detail.branch_mesh import MeshParams
 from ..core.detail.leaf_clusters import LeafParams
 from ..core.detail.twigs import TwigParams
+from ..core.formats import interchange
 from ..core.generate.growth import GrowParams
 from ..core.pipeline import Settings
 from ..core.reconstruct.lift import LiftParams
@@ -302,9 +303,7 @@ class TreeVideoSettings(bpy.types.PropertyGroup):
                                       description="Replace existing files in the output folder")
     export_format: bpy.props.EnumProperty(
         name="Format", default="FBX",
-        items=[("FBX", "FBX", "Armature + skinned mesh, baked animation (game engines, Maya, Unreal)"),
-               ("GLB", "glTF", "Binary glTF with skin and animation from t = 0 (web, Godot, Unity)"),
-               ("USD", "USD", "UsdSkel skeleton and animation (needs a Blender built with USD)")],
+        items=[(f.key, f.label, f.description) for f in interchange()],
         description="File format of the export")
 
 

@@ -14,22 +14,20 @@ import numpy as np
 
 from ...core.errors import InputError
 from ...core.fileio import publish, temp_path
+from ...core.formats import FORMATS, by_flag
 from ...core.tree3d import Tree3D
 from . import export
 from .build import build_tree
 
-FORMATS = {"fbx": "tree.fbx", "usd": "tree.usdc", "gltf": "tree.glb", "blend": "tree.blend",
-           "preview": "preview.png"}
-
 
 def wanted_files(out_dir: str, wanted: dict) -> list[str]:
-    """Paths the job will write for ``wanted`` = {format: bool}."""
-    return [os.path.join(out_dir, FORMATS[k]) for k, on in wanted.items() if on]
+    """Paths the job will write for ``wanted`` = {format flag: bool} (:mod:`core.formats`)."""
+    return [os.path.join(out_dir, by_flag(k).file) for k, on in wanted.items() if on]
 
 
 def check_wanted(wanted: dict) -> None:
     """Refuse, before any work, what this Blender cannot write."""
-    if wanted.get("usd") and not export.has_usd():
+    if any(wanted.get(f.flag) and f.needs_usd for f in FORMATS) and not export.has_usd():
         raise InputError("this Blender was built without USD (e.g. Debian's); drop --usd or use FBX/glTF")
 
 
@@ -37,7 +35,8 @@ def write_outputs(tree: Tree3D, out_dir: str, wanted: dict, overwrite: bool = Fa
                   fresh_scene: bool = True, report=print, leaf_image: str | None = None) -> dict:
     """Build ``tree`` in the scene and write the ``wanted`` files into ``out_dir``.
 
-    ``fresh_scene`` starts from an empty scene (batch runs); returns {format: path}.
+    ``wanted`` = {format flag: bool} (:mod:`core.formats`); ``fresh_scene`` starts from an empty
+    scene (batch runs); returns {format flag: path}.
     """
     check_wanted(wanted)
     for path in wanted_files(out_dir, wanted):
@@ -49,20 +48,15 @@ def write_outputs(tree: Tree3D, out_dir: str, wanted: dict, overwrite: bool = Fa
     built = build_tree(context, tree, tree.name, replace=True, leaf_image=leaf_image)
     objects = [o for o in (built["armature"], built["mesh"], built["leaves"]) if o is not None]
     written = {}
-    if wanted.get("fbx"):
-        written["fbx"] = export.export_fbx(os.path.join(out_dir, FORMATS["fbx"]), objects, overwrite=overwrite)
-        report(f"[export] {written['fbx']}")
-    if wanted.get("usd"):
-        written["usd"] = export.export_usd(os.path.join(out_dir, FORMATS["usd"]), objects, overwrite=overwrite)
-        report(f"[export] {written['usd']}")
-    if wanted.get("gltf"):
-        written["gltf"] = export.export_gltf(os.path.join(out_dir, FORMATS["gltf"]), objects, overwrite=overwrite)
-        report(f"[export] {written['gltf']}")
+    for f in FORMATS:                       # the interchange files, in the registry's order
+        if f.interchange and wanted.get(f.flag):
+            written[f.flag] = getattr(export, f.writer)(os.path.join(out_dir, f.file), objects, overwrite=overwrite)
+            report(f"[export] {written[f.flag]}")
     if wanted.get("preview"):
-        written["preview"] = render_preview(context, tree, objects, os.path.join(out_dir, FORMATS["preview"]))
+        written["preview"] = render_preview(context, tree, objects, os.path.join(out_dir, by_flag("preview").file))
         report(f"[preview] {written['preview']}")
     if wanted.get("blend"):
-        written["blend"] = save_blend(os.path.join(out_dir, FORMATS["blend"]))
+        written["blend"] = save_blend(os.path.join(out_dir, by_flag("blend").file))
         report(f"[blend] {written['blend']}")
     return written
 
