@@ -107,7 +107,7 @@ def load_tree(path: str | os.PathLike) -> Tree3D:
 
 
 def generate(species: str | os.PathLike = "broad", n: int = 1, envelope: str | None = None,
-             seed: int = 0, height_m: float = 10.0, progress: ProgressFn | None = None,
+             seed: int = 0, height_m: float | None = None, progress: ProgressFn | None = None,
              **kw: Any) -> list[Tree3D]:
     """``n`` new animated trees of a species (a library name: broad, sparse, conifer, or a species
     ``.json``), grown in ``envelope`` (circle, triangle, pentagon, heart, a silhouette image; None:
@@ -120,6 +120,7 @@ def generate(species: str | os.PathLike = "broad", n: int = 1, envelope: str | N
     if not 1 <= int(n) <= gb.MAX_TREES:
         raise InputError(f"{n} trees: give a number from 1 to {gb.MAX_TREES}")
     model, _ = gb.load_species_spec(os.fspath(species))
+    height_m = gb.GenerateRequest().height_m if height_m is None else height_m   # the one default (10 m)
     env, _ = gb.make_envelope(envelope or gb.default_envelope(model), height_m)
     known = {f.name for f in dataclasses.fields(GrowParams)}
     bad = sorted(set(kw) - known)

@@ -86,7 +86,7 @@ KEYS: dict[str, Key] = {
                 "the tree's form (forms.TREE_FORMS): given, or detected from the outline"),
     "mu_deg": Key("degrees", ("pipeline.build_3d", "growth.grow_tree"), "the lift's mean branching angle μ"),
     "envelope": Key("m (EnvelopeMeta)", ("pipeline.build_3d", "growth.grow_tree"), "the crown envelope Ω"),
-    "mesh": Key("{curliness 0..1, bark, seed}", ("pipeline.build_3d", "cli"),
+    "mesh": Key("{curliness 0..1, bark, seed}", ("pipeline.build_3d", "generate.growth", "cli"),
                 "the branch mesh's look, read by the Blender builder"),
     "solver": Key("probabilistic|deterministic", ("pipeline.build_3d",), "the 3D motion solver used"),
     "base_px": Key("[x, y] px", ("pipeline.build_3d",),

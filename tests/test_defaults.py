@@ -155,3 +155,25 @@ def test_the_panels_custom_leaf_colour_is_a_colour_the_core_takes():
     assert leaf_colour_setting("custom", (1.2, -0.1, 0.5)) == "#FF0080"      # clipped to 0..1
     assert leaf_colour_setting("video", (0.8, 0.2, 0.0)) == "video"
     assert spec(LeafParams, "colour").ok(leaf_colour_setting("custom", (0.33, 0.46, 0.18)))
+
+
+def test_a_generated_tree_has_the_one_look_and_height(addon):
+    """Issue 33: api.generate's trees were built with straight tubes and no bark (the grown tree
+    carried no look) and the panel grew 8 m trees where the CLI and API grew 10 m ones. A grown tree
+    records the branch mesh's look with the core's defaults, and every front end's height is the
+    core's."""
+    import inspect
+
+    from tree_from_video import api, cli
+    from tree_from_video.core.detail.branch_mesh import MeshParams
+    from tree_from_video.core.generate.batch import GenerateRequest
+    from tree_from_video.operators.scene.branch_mesh import mesh_params
+    tree, = api.generate("broad", node_budget=40, n_frames=8)
+    look = mesh_params(tree)
+    assert (look.curliness, look.bark) == (MeshParams().curliness, MeshParams().bark) == (0.3, "rough")
+    height = float(tree.nodes3d[0][:, 2].max() - tree.nodes3d[0][:, 2].min())
+    assert 8.5 < height <= 10.5          # grown into a 10 m envelope (it stops short of its top), not 8 m
+    assert addon.gen_height == GenerateRequest().height_m == 10.0
+    assert inspect.signature(api.generate).parameters["height_m"].default is None   # None: the core's
+    args = cli.build_parser().parse_args(["v.mp4", "--out", "d", "--generate", "2"])
+    assert args.height == GenerateRequest().height_m

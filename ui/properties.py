@@ -10,6 +10,7 @@ from ..core.detail.branch_mesh import MeshParams
 from ..core.detail.leaf_clusters import LeafParams
 from ..core.detail.twigs import TwigParams
 from ..core.formats import interchange
+from ..core.generate.batch import GenerateRequest
 from ..core.generate.growth import GrowParams
 from ..core.pipeline import Settings
 from ..core.reconstruct.lift import LiftParams
@@ -34,6 +35,10 @@ CORE_FIELDS = {
     "height_m": (Settings, "height_m"),
     "twig_depth": (TwigParams, "depth"),
     "gen_twig_depth": (GrowParams, "twig_depth"),
+    "gen_height": (GenerateRequest, "height_m"),
+    "gen_nodes": (GenerateRequest, "nodes"),
+    "gen_wind": (GenerateRequest, "wind"),
+    "gen_seed": (GenerateRequest, "seed"),
     "curliness": (MeshParams, "curliness"),
     "bark": (MeshParams, "bark"),
     "leaf_density": (LeafParams, "density"),
@@ -249,11 +254,11 @@ class TreeVideoSettings(bpy.types.PropertyGroup):
     envelope_curve: bpy.props.PointerProperty(name="Curve", type=bpy.types.Object,
                                               poll=lambda self, ob: ob.type == "CURVE",
                                               description="Closed curve in the X/Z plane, trunk base at its lowest point")
-    gen_seed: bpy.props.IntProperty(name="Seed", default=0, min=0,
+    gen_seed: bpy.props.IntProperty(name="Seed", **_core("gen_seed"),
                                     description="Random seed: the same seed grows the same tree")
-    gen_height: bpy.props.FloatProperty(name="Height", default=8.0, min=0.1, max=200.0, unit="LENGTH",
-                                        description="Height of a generated tree (metres)")
-    gen_nodes: bpy.props.IntProperty(name="Nodes", default=200, min=8, max=5000,
+    gen_height: bpy.props.FloatProperty(name="Height", **_core("gen_height", open_min=0.1, soft_max=200.0),
+                                        unit="LENGTH", description="Height of a generated tree (metres)")
+    gen_nodes: bpy.props.IntProperty(name="Nodes", **_core("gen_nodes", soft_max=5000),
                                      description="Node budget of a generated tree (bones + 1)")
     gen_twig_depth: bpy.props.IntProperty(name="Twigs", **_core("gen_twig_depth"),
                                           description="Generations of twigs copied from a generated tree's own forks "
@@ -262,7 +267,7 @@ class TreeVideoSettings(bpy.types.PropertyGroup):
     gen_leaf_density: bpy.props.FloatProperty(name="Foliage", default=1.0, min=0.0, max=1.0, subtype="FACTOR",
                                               description="Share of the species' leaf clusters on a generated tree (1: as "
                                                           "leafy as the species, fewer: fewer, larger clusters; 0: bare)")
-    gen_wind: bpy.props.FloatProperty(name="Wind", default=1.0, min=0.0, max=10.0,
+    gen_wind: bpy.props.FloatProperty(name="Wind", **_core("gen_wind", soft_max=10.0),
                                       description="Sway amplitude relative to the source video (2 = twice as strong)")
     gen_audio: bpy.props.StringProperty(name="Wind Audio", subtype="FILE_PATH",
                                         description="Optional .wav whose loudness drives the sway (e.g. a windy day)")

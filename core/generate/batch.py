@@ -51,7 +51,7 @@ class GenerateRequest:
     nodes: int = param(200, 4, what="--nodes")
     frames_out: int | None = None
     seconds: float | None = None
-    height_m: float = 10.0
+    height_m: float = param(10.0, 0.0, 1000.0, lo_open=True, what="--height", unit="m")
     leaf_density: float = 1.0
     twig_depth: int = same_as(TwigParams, "depth")
 

@@ -43,6 +43,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..detail.branch_mesh import MeshParams
 from ..detail.twigs import TwigParams, add_twigs
 from ..envelope import Envelope
 from ..errors import InputError
@@ -81,7 +82,10 @@ class GrowParams:
     so the trunk and the tips are as wide as the source's, :func:`species_radii`; 0.0025 and 2
     for a species without widths); ``leaf_density`` passed on in
     ``meta`` for the leaf builder; ``twig_depth`` generations of twigs drawn beyond the budget's
-    nodes (0: none; the reconstruction's default); ``conifer`` (None: the model's); ``name``."""
+    nodes (0: none; the reconstruction's default); ``conifer`` (None: the model's); ``name``;
+    ``curliness`` and ``bark``, the branch mesh's look, recorded in ``meta["mesh"]`` as a
+    reconstruction records it (the same defaults: a grown tree looks like a reconstructed one
+    wherever it is built)."""
 
     seed: int = 0
     height_m: float | None = None
@@ -108,6 +112,8 @@ class GrowParams:
     twig_depth: int = same_as(TwigParams, "depth")
     conifer: bool | None = None
     name: str | None = None
+    curliness: float = same_as(MeshParams, "curliness")
+    bark: str = same_as(MeshParams, "bark")
 
 
 @dataclass
@@ -539,7 +545,8 @@ def grow_tree(model: SpeciesModel, envelope: Envelope, params: GrowParams | None
             "form": model.form if p.conifer is None else ("conifer" if conifer else "broadleaf"),
             "mu_deg": float(np.degrees(mu)), "height_px": float(H * k), "metres_per_px": float(1.0 / k),
             "leaf_density": float(p.leaf_density), "node_budget": int(p.node_budget),
-            "time_offset_s": float(p.time_offset_s), "sway_scale": float(sway_scale)}
+            "time_offset_s": float(p.time_offset_s), "sway_scale": float(sway_scale),
+            "mesh": {"curliness": float(p.curliness), "bark": str(p.bark), "seed": int(p.seed)}}
     tree = Tree3D(g.parents.astype(np.int32), nodes3d.astype(np.float32), radius,
                   branching_level(g.parents).astype(np.int32), fps, p.name or f"{model.name}_{int(p.seed)}", meta)
     if not palm and p.twig_depth > 0:
