@@ -10,6 +10,9 @@ detail/       a ``Tree3D`` → the same tree with twigs copied from its forks, l
 generate/     reconstructed ``Tree3D``s → a species (``SpeciesModel``: Dirichlets of shape and
               motion) → new ``Tree3D``s grown in any envelope, swaying by wind or audio; forests;
               and a crown's limbs grown where the video shows none (``limbs``).
+asset/        a ``Tree3D`` → what every writer copies (``TreeAsset``): the rig (bones, rest pose,
+              the motion's reduced keys), the branch and leaf meshes, the look, each node's role;
+              Blender's builders and the engine exports read it.
 
 Shared by every stage, at this level: the tree model (``tree3d``: ``Tree3D``, ``LeafClusters``,
 and its ``meta`` keys in ``meta``), its bones (``bones``), topology helpers (``topology``),
@@ -21,6 +24,6 @@ and background jobs. ``pipeline`` strings the stages end to end: ``run`` (the 2D
 the limbs of a crown that shows no bark.
 
 Imports point one way: ``reconstruct`` never imports ``detail`` or ``generate``; ``detail`` may
-use ``reconstruct``; ``generate`` may use both; the shared modules import no stage
+use ``reconstruct``; ``generate`` may use both; ``asset`` uses ``detail`` only; the shared modules import no stage
 (``tests/test_structure.py`` walks the imports).
 """

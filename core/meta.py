@@ -36,6 +36,7 @@ class TreeMeta(TypedDict, total=False):
     envelope: EnvelopeMeta
     mesh: dict[str, Any]
     # a reconstruction (pipeline.build_3d)
+    limbs: str
     solver: str
     base_px: list[float]
     video_size: list[int]
@@ -88,6 +89,9 @@ KEYS: dict[str, Key] = {
     "envelope": Key("m (EnvelopeMeta)", ("pipeline.build_3d", "growth.grow_tree"), "the crown envelope Ω"),
     "mesh": Key("{curliness 0..1, bark, seed}", ("pipeline.build_3d", "generate.growth", "cli"),
                 "the branch mesh's look, read by the Blender builder"),
+    "limbs": Key("traced|grown|...", ("pipeline.build_3d",),
+                 "the 2D skeleton's kind: grown where the crown's limbs were grown from a species "
+                 "(asset.roles marks those nodes as grown limbs)"),
     "solver": Key("probabilistic|deterministic", ("pipeline.build_3d",), "the 3D motion solver used"),
     "base_px": Key("[x, y] px", ("pipeline.build_3d",),
                    "the trunk base in frame 1 (after the branch fit moved the trunk onto its centre line)"),

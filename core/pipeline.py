@@ -175,6 +175,7 @@ def build_3d(res: Result, s: Settings | None = None, name: str = "Tree",
             "conifer": lift_params.conifer, "form": res.form, "mu_deg": float(np.degrees(lifted.mu)),
             "envelope": envelope_to_meta(lifted.envelope, scale),
             "mesh": {"curliness": float(s.curliness), "bark": s.bark, "seed": int(s.twigs.seed)},
+            "limbs": sk.kind,                                    # traced from the video, or grown
             "base_px": [float(base[0]), float(base[1])],          # trunk base in frame 1 (x, y) px
             "video_size": [int(res.outline.mask.shape[1]), int(res.outline.mask.shape[0])]}
     tree = Tree3D(sk.parents.copy(), (mo.nodes * scale).astype(np.float32), radius, sk.level.copy(),

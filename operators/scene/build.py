@@ -14,10 +14,10 @@ import time
 import bpy
 import numpy as np
 
-from ...core import bones, keys
-from ...core.detail import branch_mesh as bm
+from ...core import bones
+from ...core.asset import tree_asset
 from ...core.errors import InputError
-from ...core.tree3d import Tree3D, key_frames, last_key_frame
+from ...core.tree3d import Tree3D, last_key_frame
 from . import armature, branch_mesh, objects, timing, trees
 from . import leaves as leaf_build  # build_tree has the parameters "leaves" and "materials"
 from . import materials as mats
@@ -64,25 +64,27 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
 
     Returns ``{"collection", "armature", "mesh" (or None), "action", "keys" (the kept keys,
     :class:`core.keys.TreeKeys`, or None with ``every_key``), "material" (or None), "leaves" (or
-    None), "leaf_polygons", "timings"}`` with ``timings`` in seconds (``rotations``, ``key
-    reduction``, ``keys``, ``armature``, ``mesh``, ``leaves``, ``total``)."""
+    None), "leaf_polygons", "timings"}`` with ``timings`` in seconds (``rig arrays``, ``mesh arrays``,
+    ``leaf arrays``: the core's :func:`core.asset.tree_asset`; ``armature``, ``keys``, ``mesh``,
+    ``leaves``: the copies into Blender; ``total``)."""
     t_total = time.perf_counter()
     _validate(tree, collection_name, sides)
     layer = context.view_layer                  # what keep_view restores (edit mode needs the rig active)
     was_selected = [o for o in layer.objects if o.select_get()] if keep_view else []
     was_active = layer.objects.active
-    branch_params = branch_mesh.mesh_params(tree, sides, curliness, bark)
-    bm.check_params(branch_params)
     old = bpy.data.collections.get(collection_name)
     if old is not None and not replace:
         raise InputError(f"a collection named '{collection_name}' already exists; choose another name "
                          "or replace it (replace=True)")
+    # everything Blender copies, computed in the core (rig, keys, meshes, look)
+    asset = tree_asset(tree, mesh=mesh, leaves=leaves, sides=sides, curliness=curliness, bark=bark,
+                       leaf_image=leaf_image, every_key=every_key)
+    timings = dict(asset.timings)
     names = {"rig": f"{collection_name} Rig", "action": f"{collection_name} Sway",
              "mesh": f"{collection_name} Branches", "material": f"{collection_name} Bark",
              "leaves": f"{collection_name} Leaves", "leaf_material": f"{collection_name} Leaf"}
-    with_leaves = leaves and tree.leaves is not None and tree.leaves.count > 0
+    rig_data, look = asset.rig, asset.look
     created = Created()
-    timings = {}
     try:
         scene = context.scene
         if context.mode != "OBJECT" and context.active_object is not None:
@@ -92,27 +94,17 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
         scene.collection.children.link(coll)
 
         t = time.perf_counter()
-        rig, rest, leaf_names = armature.build_armature(
-            context, tree, coll, names["rig"], created,
-            (lambda data: leaf_build.add_leaf_edit_bones(data, tree)) if with_leaves else None)
+        rig = armature.build_armature(context, rig_data, coll, names["rig"], created)
         timings["armature"] = time.perf_counter() - t
         offset = tree.meta.get("shot_offset_m")      # one of several trees of a shot: where it stands
         if offset is not None:
             rig.location = tuple(float(v) for v in offset)
 
         t = time.perf_counter()
-        local = bones.local_rotations(tree.parents, tree.nodes3d, rest)
-        timings["rotations"] = time.perf_counter() - t
-        t = time.perf_counter()
-        frames = key_frames(tree)
-        kept = None if every_key else keys.tree_keys(tree, rest, frames, local=local)
-        timings["key reduction"] = time.perf_counter() - t
-        t = time.perf_counter()
-        action, make_fcurve = armature.key_pose(rig, local, bones.bone_names(tree.parents), names["action"], created,
-                                                frames, None if kept is None else kept.bones)
-        if leaf_names:
-            leaf_build.key_leaf_bones(rig, make_fcurve, tree, leaf_names, frames, None if kept is None else kept.leaves,
-                                      None if kept is None else kept.cycle)
+        branch_names = rig_data.names[:rig_data.n_branch]
+        action, make_fcurve = armature.key_pose(rig, rig_data.keys, branch_names, names["action"], created)
+        if rig_data.leaf_keys is not None:
+            leaf_build.key_leaf_bones(make_fcurve, rig_data.leaf_keys, rig_data.leaf_names)
         timings["keys"] = time.perf_counter() - t
         render = scene.render
         saved = (render.fps, render.fps_base, scene.frame_start, scene.frame_end, scene.frame_current)
@@ -120,24 +112,25 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
         timing.fit_scene_timing(scene, tree.fps, last_key_frame(tree), first=not trees.scene_trees(scene, exclude=coll))
 
         mesh_obj = material = None
-        if mesh:
+        if asset.branches is not None:
             t = time.perf_counter()
             material = (materials or {}).get("bark")
             if material is None:
                 material = created.add(bpy.data.materials, mats.bark_material(
-                    names["material"], branch_params.bark, (tree.meta.get("bark_colour") or {}).get("colour")))
-            mesh_obj = branch_mesh.build_mesh(tree, rest, rig, coll, names["mesh"], material, branch_params, created)
+                    names["material"], look.mesh.bark, look.bark_colour))
+            mesh_obj = branch_mesh.build_mesh(asset.branches, branch_names, rig, coll, names["mesh"], material, created)
             timings["mesh"] = time.perf_counter() - t
         leaf_obj = leaf_mat = None
-        if leaf_names:
+        if asset.leaves is not None:
             t = time.perf_counter()
             leaf_mat = (materials or {}).get("leaf")
             if leaf_mat is None:
                 leaf_mat = created.add(bpy.data.materials, mats.leaf_material(
-                    names["leaf_material"], leaf_image, mats.leaf_tint(tree.leaves), mats.leaf_colour(tree.leaves)))
+                    names["leaf_material"], leaf_image, look.leaf_tint, look.leaf_colour))
                 for img in mats.material_images(leaf_mat):
                     created.add(bpy.data.images, img)
-            leaf_obj = leaf_build.build_leaf_mesh(tree, rig, coll, names["leaves"], leaf_names, leaf_mat, created)
+            leaf_obj = leaf_build.build_leaf_mesh(asset.leaves, rig, coll, names["leaves"], rig_data.leaf_names,
+                                                  leaf_mat, created)
             timings["leaves"] = time.perf_counter() - t
 
         if old is not None:
@@ -172,7 +165,7 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
         created.remove(context)
         raise
     timings["total"] = time.perf_counter() - t_total
-    return {"collection": coll, "armature": rig, "mesh": mesh_obj, "action": action, "keys": kept,
+    return {"collection": coll, "armature": rig, "mesh": mesh_obj, "action": action, "keys": rig_data.reduced,
             "material": material, "leaves": leaf_obj,
             "leaf_polygons": tree.leaves.polygons if leaf_obj is not None else 0, "timings": timings}
 

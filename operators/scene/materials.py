@@ -8,6 +8,8 @@ from __future__ import annotations
 import bpy
 import numpy as np
 
+from ...core.asset.look import bark_solid as bark_colour
+from ...core.asset.look import leaf_colour, leaf_tint  # noqa: F401  (re-exported: the look lives in the core)
 from ...core.detail.albedo import srgb_to_linear
 from ...core.detail.bark_texture import BARK_LOOK, BARK_RAMP, bark_ramp  # noqa: F401  (BARK_RAMP: re-exported)
 from ...core.errors import InputError
@@ -89,28 +91,6 @@ def bark_material(name: str, kind: str = "none", colour=None) -> bpy.types.Mater
         bpy.data.materials.remove(mat)
         raise
     return mat
-
-
-def bark_colour(colour=None) -> tuple:
-    """Linear RGBA of the bark as rendered on average: the middle of its colour ramp
-    (:func:`bark_ramp` of ``colour``), the bark material's solid-view colour."""
-    dark, light = (np.asarray(c, np.float64) for c in bark_ramp(colour))
-    return tuple(float(c) for c in 0.5 * (dark + light))
-
-
-def leaf_colour(leaves) -> np.ndarray:
-    """``(3,)`` sRGB colour of the foliage as the video shows it: the median of the clusters'
-    colours per channel (the species model keeps the same median). The leaf material's
-    solid-view colour."""
-    return np.median(np.asarray(leaves.colour, np.float64), axis=0)
-
-
-def leaf_tint(leaves) -> np.ndarray:
-    """``(3,)`` sRGB colour of the procedural leaf texture: the 90th percentile of the clusters'
-    video colours per channel. The ``Col`` attribute holds each cluster's colour divided by it,
-    so texture × ``Col`` = the video's colour, while a viewer that ignores vertex colours (solid
-    view, some engines) still shows leaf-coloured leaves."""
-    return np.maximum(np.percentile(np.asarray(leaves.colour, np.float64), 90, axis=0), 1e-3)
 
 
 def leaf_texture_pixels(size: int = TEXTURE_SIZE, tint=(1.0, 1.0, 1.0)) -> np.ndarray:

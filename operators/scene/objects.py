@@ -119,3 +119,12 @@ def unique_collection_name(base: str) -> str:
         name = f"{base}.{k:03d}"
         k += 1
     return name
+
+
+def weight_by_bone(ob, bone: np.ndarray, names: list[str]) -> None:
+    """One vertex group per bone of ``names`` holding its vertices (``bone (V,)``, contiguous runs)
+    with weight 1 (vertex weights have no foreach_set: one call per group)."""
+    order = np.argsort(bone, kind="stable")
+    cuts = np.searchsorted(bone[order], np.arange(len(names) + 1))
+    for s, bname in enumerate(names):
+        ob.vertex_groups.new(name=bname).add(order[cuts[s]:cuts[s + 1]].tolist(), 1.0, "REPLACE")
