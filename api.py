@@ -6,6 +6,7 @@
     api.save_tree(tree, "oak/tree3d.npz");  tree = api.load_tree("oak/tree3d.npz")
     print(tree.meta["metres_per_px"], tree.meta["base_px"], tree.meta["video_size"])
     trees = api.generate("broad", 3, envelope="heart", seed=7)          # new trees of a species
+    game = api.loop(tree, 8.0)                                          # a seamless 8 s loop
     # inside Blender (bpy):
     built = api.build_tree(bpy.context, tree, "Oak")                    # armature, branches, leaves
     api.export(built, "//oak.glb")                                      # format from the extension
@@ -132,6 +133,15 @@ def generate(species: str | os.PathLike = "broad", n: int = 1, envelope: str | N
         trees.append(grow_tree(model, env, p, progress=sub_progress(progress, i / n, (i + 1) / n)))
     report(progress, "generating", 1.0)
     return trees
+
+
+def loop(tree: Tree3D, seconds: float) -> Tree3D:
+    """``tree`` cut to a seamless loop of about ``seconds`` (a length past the clip's takes the whole
+    clip with its seam blended; :func:`core.asset.loop.loop_tree`): ``L + 1`` frames, the last
+    equal to the first, the leaves' flutter and flap on whole periods; built in Blender its action
+    is named ``<tree>_loop`` and every export names its animation so."""
+    from .core.asset.loop import loop_tree
+    return loop_tree(tree, seconds)[0]
 
 
 def species_library() -> dict[str, str]:

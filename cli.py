@@ -23,6 +23,7 @@ from types import SimpleNamespace
 
 from . import __version__, api
 from .core import pipeline
+from .core.asset.loop import LoopSettings
 from .core.detail.branch_mesh import MeshParams
 from .core.detail.leaf_clusters import LeafParams
 from .core.detail.twigs import TwigParams
@@ -117,6 +118,10 @@ def build_parser() -> argparse.ArgumentParser:
                         "plausible green where the video shows a dark or backlit silhouette), video (the raw "
                         "sample) or #RRGGBB (default %(default)s)")
     p.add_argument("--leaf-image", help="image of one leaf (alpha = shape) instead of the procedural leaf")
+    p.add_argument("--loop", type=float, default=_default(LoopSettings, "seconds"), metavar="SECONDS",
+                   help="cut the animation the Blender outputs carry to a seamless loop of about this many "
+                        "seconds (a length past the clip's takes the whole clip, its seam blended; named "
+                        "<tree>_loop so engines loop it); tree3d.npz keeps the whole motion (default: no loop)")
     for f in FORMATS:                      # the output formats' registry: --fbx --usd --gltf --blend --preview
         p.add_argument(f"--{f.flag}", action="store_true", help=f.help.format(file=f.file))
     p.add_argument("--no-video", action="store_true", help="skip overlay.mp4 (overlay.png is still written)")
@@ -203,6 +208,15 @@ def _wanted(args) -> tuple[dict, list[str]]:
     return wanted, [f.file for f in FORMATS if wanted[f.flag]]
 
 
+def _check_loop(args) -> None:
+    """--loop: a positive number of seconds, for the Blender outputs."""
+    if not spec(LoopSettings, "seconds").ok(args.loop):
+        raise InputError(f"--loop {args.loop}: give a number of seconds, {spec(LoopSettings, 'seconds').describe()}, e.g. 10")
+    if args.loop > 0 and not any(_wanted(args)[0].values()):
+        raise InputError("--loop cuts the animation of the Blender outputs; add one of "
+                         f"{', '.join('--' + f.flag for f in FORMATS)}")
+
+
 def _check_leaf_image(path: str | None) -> None:
     if path and not os.path.isfile(path):
         raise InputError(f"leaf image '{path}' does not exist; give an image file or drop "
@@ -246,7 +260,7 @@ def _run_generation(args, plan, outputs, wanted) -> int:
             tree.meta["mesh"] = {"curliness": float(args.curliness), "bark": args.bark,     # the branch mesh's look
                                  "seed": int(tree.meta.get("seed", 0))}
             return outputs.write_outputs(tree, folder, wanted, overwrite=args.force, fresh_scene=True,
-                                         report=log, leaf_image=args.leaf_image)
+                                         report=log, leaf_image=args.leaf_image, loop_s=args.loop)
     t0 = time.monotonic()
     entries = gb.generate_trees(plan.model, plan.species_label, plan.envelope, plan.envelope_label, plan.req,
                                 args.out, write, _progress_printer(args.quiet), log)
@@ -351,7 +365,7 @@ def _write_tree(args, res, tree, out: str, outputs, wanted, exports: bool, cb) -
                            res.foreground.mask if res.foreground is not None else None)
     if outputs is not None and exports:              # with --generate the exports are per generated tree
         outputs.write_outputs(tree, out, wanted, overwrite=args.force, leaf_image=args.leaf_image,
-                              report=lambda m: sys.stderr.write(m + "\n"))
+                              report=lambda m: sys.stderr.write(m + "\n"), loop_s=args.loop)
     conf = res.skeleton.confidence
     sure = "" if conf is None else f", {node_motion.confidence_summary(conf)}"
     sys.stderr.write(f"done: {res.skeleton.n_nodes} nodes, {res.tracks.n_tracks} tracks, "
@@ -362,6 +376,7 @@ def main(argv: list[str] | None = None) -> int:
     """Run the batch job on ``argv``; returns the exit code (argparse errors exit 2 via SystemExit)."""
     args = build_parser().parse_args(argv)
     try:
+        _check_loop(args)
         gen = _plan_generation(args)        # None without --generate
         if args.video is None:
             return _generate_only(args, gen)

@@ -13,6 +13,7 @@ import os
 import bpy
 import numpy as np
 
+from ..core.asset.loop import maybe_loop
 from ..core.envelope import envelope_from_meta
 from ..core.errors import InputError
 from ..core.generate import envelopes, forest, growth, species
@@ -213,6 +214,9 @@ class TREE_OT_generate(jobs.JobOperator, bpy.types.Operator):
         tree = trees[0]
         name = unique_collection_name(f"{model.name} {context.scene.tree_video.gen_seed}")
         try:
+            tree, note = maybe_loop(tree, context.scene.tree_video.loop_seconds)
+            if note:
+                self.report({"INFO"}, note)
             built = build_tree(context, tree, name, curliness=context.scene.tree_video.curliness,
                                bark=context.scene.tree_video.bark, keep_view=True)
         except InputError as exc:
@@ -265,7 +269,8 @@ class TREE_OT_generate_forest(jobs.JobOperator, bpy.types.Operator):
     # the worker's trees are built on the main thread: all at once (execute) or a few per tick (invoke)
     def done(self, context, result):
         props = context.scene.tree_video
-        state = ForestBuild(context, self._name, *result, curliness=props.curliness, bark=props.bark)
+        state = ForestBuild(context, self._name, *result, curliness=props.curliness, bark=props.bark,
+                            loop_s=props.loop_seconds)
         if self._timer is None and getattr(self, "_invoked", False):
             self._pending = state
             # still a running job while the trees are built: the other buttons stay greyed and

@@ -13,6 +13,7 @@ import bpy
 import numpy as np
 
 from ..core import pipeline
+from ..core.asset.loop import maybe_loop
 from ..core.errors import InputError
 from ..core.job import Job
 from ..core.reconstruct.node_motion import confidence_summary, low_share
@@ -196,6 +197,9 @@ class TREE_OT_reconstruct(jobs.JobOperator, bpy.types.Operator):
     def _build(self, context, props, res, tree):
         """One reconstructed tree into its collection; None (reported) when it cannot be built."""
         try:
+            tree, note = maybe_loop(tree, props.loop_seconds)
+            if note:
+                self.report({"INFO"}, note)
             built = build_tree(context, tree, tree.name, replace=props.replace_existing, mesh=props.build_mesh,
                                leaf_image=bpy.path.abspath(props.leaf_image) if props.leaf_image else None)
         except InputError as exc:

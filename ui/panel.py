@@ -175,6 +175,7 @@ class TREE_PT_output(_TreePanel, bpy.types.Panel):
         col.prop(props, "height_m")
         col.prop(props, "fit_branches")
         col.prop(props, "twig_depth")
+        col.prop(props, "loop_seconds")
         col.prop(props, "build_mesh")
         sub = col.column()
         sub.enabled = props.build_mesh

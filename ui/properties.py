@@ -6,6 +6,7 @@ A setting the core has a parameter for takes its default and limits from the cor
 candidates take their defaults from :class:`MotionParams` / :class:`LiftParams` instances."""
 import bpy
 
+from ..core.asset.loop import LoopSettings
 from ..core.detail.branch_mesh import MeshParams
 from ..core.detail.leaf_clusters import LeafParams
 from ..core.detail.twigs import TwigParams
@@ -36,6 +37,7 @@ CORE_FIELDS = {
     "twig_depth": (TwigParams, "depth"),
     "gen_twig_depth": (GrowParams, "twig_depth"),
     "gen_height": (GenerateRequest, "height_m"),
+    "loop_seconds": (LoopSettings, "seconds"),
     "gen_nodes": (GenerateRequest, "nodes"),
     "gen_wind": (GenerateRequest, "wind"),
     "gen_seed": (GenerateRequest, "seed"),
@@ -168,6 +170,11 @@ class TreeVideoSettings(bpy.types.PropertyGroup):
     height_m: bpy.props.FloatProperty(name="Tree Height", unit="LENGTH",
                                       **_core("height_m", open_min=0.1, soft_max=200.0),
                                       description="Height of the reconstructed tree in the scene (metres)")
+    loop_seconds: bpy.props.FloatProperty(name="Loop (s)", **_core("loop_seconds", soft_max=60.0),
+                                          description="Cut the new tree's animation to a seamless loop of this many "
+                                                      "seconds for game engines (0: the clip as measured; longer "
+                                                      "than the clip: the whole clip, its seam blended); its action "
+                                                      "and every export's animation are named <tree>_loop")
     build_mesh: bpy.props.BoolProperty(name="Branch Mesh", default=True,
                                        description="Build skinned bark tubes along the bones")
     fit_branches: bpy.props.BoolProperty(name="Fit to Video", default=True,

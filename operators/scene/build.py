@@ -39,7 +39,8 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
     Creates an armature object ``"<name> Rig"`` (one bone per edge, ``"B{child:03d}"``, rest pose =
     tree frame 0, roll 0, connected to the parent bone; the bones in a hidden bone collection
     ``"Branches"``, so the viewport draws no sticks) whose pose bones are keyed in QUATERNION
-    mode on the scene frames ``1..F`` where the motion needs a key (action ``"<name> Sway"``:
+    mode on the scene frames ``1..F`` where the motion needs a key (action ``"<name> Sway"``, or
+    ``"<name>_loop"`` for a loop, :func:`core.asset.loop.loop_tree`:
     :func:`core.keys.tree_keys`, Bezier keys or baked samples, no node more than ``KEY_TOLERANCE``
     of the height off the full motion at any frame; ``every_key``: a LINEAR key on every frame); the first tree of
     a scene sets its fps (``fps`` int + ``fps_base``) and frame range ``1..F``, a later one only
@@ -80,7 +81,9 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
     asset = tree_asset(tree, mesh=mesh, leaves=leaves, sides=sides, curliness=curliness, bark=bark,
                        leaf_image=leaf_image, every_key=every_key)
     timings = dict(asset.timings)
-    names = {"rig": f"{collection_name} Rig", "action": f"{collection_name} Sway",
+    # a loop's action is named so engines loop it (Godot loops an animation whose name ends in "loop")
+    action_name = f"{collection_name}_loop" if tree.meta.get("loop") else f"{collection_name} Sway"
+    names = {"rig": f"{collection_name} Rig", "action": action_name,
              "mesh": f"{collection_name} Branches", "material": f"{collection_name} Bark",
              "leaves": f"{collection_name} Leaves", "leaf_material": f"{collection_name} Leaf"}
     rig_data, look = asset.rig, asset.look

@@ -59,7 +59,8 @@ def export_fbx(path: str | os.PathLike, objects: Iterable[bpy.types.Object], *, 
     rig's current action, its first frame at FBX time 0 (the exporter writes a frame's number as
     its time: keys on frames 1..F came back on 2..F+1 with Blender's own import, and engines saw
     an empty first frame). Textures are embedded (``path_mode`` COPY + ``embed_textures``: with AUTO the
-    leaf texture was left out and the leaves imported white)."""
+    leaf texture was left out and the leaves imported white). The animation stack is named after
+    the rig's action (:func:`animation_name`: ``<tree>_loop`` for a loop)."""
     options = dict(use_selection=True, object_types={"ARMATURE", "MESH"}, add_leaf_bones=False,
                    bake_anim=True, bake_anim_use_all_bones=True, bake_anim_use_nla_strips=False,
                    bake_anim_use_all_actions=False, bake_anim_force_startend_keying=True,
@@ -75,7 +76,8 @@ def export_gltf(path: str | os.PathLike, objects: Iterable[bpy.types.Object], *,
 
     One skin (every bone a joint), the rig's current action sampled at every frame and no other
     action of the file (no optimisation that would drop constant keys), times starting at 0 s
-    (``export_anim_slide_to_zero``, where this Blender's exporter has it)."""
+    (``export_anim_slide_to_zero``, where this Blender's exporter has it); the animation is named
+    after the rig's action (:func:`animation_name`: ``<tree>_loop`` for a loop)."""
     options = dict(export_format="GLB", use_selection=True, export_animations=True,
                    export_animation_mode="ACTIVE_ACTIONS", export_frame_range=True, export_frame_step=1,
                    export_force_sampling=True, export_anim_slide_to_zero=True,
@@ -91,6 +93,7 @@ def export_gltf(path: str | os.PathLike, objects: Iterable[bpy.types.Object], *,
                    # reconstruction exported after Generate carried the generated tree's rotations
                    # (Blender 4.3: quaternion components off by up to 1.9, the other tree's key count)
                    export_anim_single_armature=False)
+    options["export_nla_strips_merged_animation_name"] = animation_name(objects) or "Animation"
     return _export("glTF", bpy.ops.export_scene, "gltf", path, (".glb",), objects, options, overwrite, context)
 
 
@@ -186,8 +189,18 @@ def _export(fmt: str, module, op_name: str, path, exts: tuple, objects, options:
     return path
 
 
-#: the name of the scene an export runs in (removed when it ends)
+#: the name of the scene an export runs in when the tree has no animation (removed when it ends)
 EXPORT_SCENE = ".Tree from Video export"
+
+
+def animation_name(objects) -> str | None:
+    """The name every export gives the tree's animation: its rig's action (``"<tree> Sway"``, or
+    ``"<tree>_loop"`` for a loop, which Godot plays looped); None without an animated rig."""
+    for ob in objects:
+        ad = getattr(ob, "animation_data", None) if ob is not None and ob.type == "ARMATURE" else None
+        if ad is not None and ad.action is not None:
+            return ad.action.name
+    return None
 
 
 @contextmanager
@@ -204,7 +217,9 @@ def _own_scene(context, objects):
         raise InputError(f"{', '.join(missing)} not in the current view layer; include the tree's collection")
     window = getattr(context, "window", None)
     shown = window.scene if window is not None else None
-    scene = bpy.data.scenes.new(EXPORT_SCENE)
+    # named after the tree's animation: FBX names its animation stack after the scene
+    name = animation_name(objects)
+    scene = bpy.data.scenes.new(name if name and bpy.data.scenes.get(name) is None else EXPORT_SCENE)
     try:
         scene.render.fps, scene.render.fps_base = src.render.fps, src.render.fps_base
         scene.frame_start, scene.frame_end = src.frame_start, src.frame_end

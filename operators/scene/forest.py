@@ -7,6 +7,7 @@ import time
 
 import bpy
 
+from ...core.asset.loop import maybe_loop
 from .build import build_tree
 from .objects import remove_collection, unique_collection_name
 from .timing import fit_scene_timing
@@ -16,17 +17,19 @@ from .trees import scene_trees
 class ForestBuild:
     """Builds the grown trees into one collection ``name``, a few per :meth:`step`, each at its
     slot's position and turn, with the branch mesh's ``curliness`` and ``bark``; all trees share the
-    first one's bark and leaf materials. ``remove()`` undoes it all."""
+    first one's bark and leaf materials; ``loop_s`` > 0 cuts each tree's motion to a seamless loop of
+    about that many seconds (:func:`core.asset.loop.maybe_loop`). ``remove()`` undoes it all."""
 
     def __init__(self, context, name: str, model, trees, slots, *, curliness: float | None = None,
-                 bark: str | None = None):
+                 bark: str | None = None, loop_s: float = 0.0):
         self.trees, self.slots, self.model = trees, slots, model
-        self.curliness, self.bark = curliness, bark
+        self.curliness, self.bark, self.loop_s = curliness, bark, loop_s
         self.coll = bpy.data.collections.new(name)
         context.scene.collection.children.link(self.coll)
         self.built: list[dict] = []
         self.materials: dict | None = None
         self.k = 0
+        self.frames = 0                                   # the longest built animation (a loop's L + 1)
         self.elapsed = 0.0
 
     @property
@@ -36,7 +39,8 @@ class ForestBuild:
     def step(self, context, budget_s: float) -> None:
         t0 = time.perf_counter()
         while not self.finished and time.perf_counter() - t0 < budget_s:
-            tree, slot = self.trees[self.k], self.slots[self.k]
+            tree, slot = maybe_loop(self.trees[self.k], self.loop_s)[0], self.slots[self.k]
+            self.frames = max(self.frames, tree.n_frames)
             name = unique_collection_name(f"{self.coll.name} {self.k:03d}")
             # each tree is built in a scratch scene: its edit-mode switches then update a view layer
             # holding one tree, not the whole forest so far (that made building quadratic)
@@ -61,7 +65,7 @@ class ForestBuild:
             scene = context.scene                         # the artist's frame and selection are kept
             mine = {b["collection"].name for b in self.built}
             others = [c for c in scene_trees(scene) if c.name not in mine]
-            fit_scene_timing(scene, self.trees[0].fps, max(t.n_frames for t in self.trees), first=not others)
+            fit_scene_timing(scene, self.trees[0].fps, self.frames, first=not others)
             scene.frame_set(scene.frame_current)          # every new rig posed at the frame shown
         self.elapsed += time.perf_counter() - t0
 

@@ -12,6 +12,7 @@ import tempfile
 import bpy
 import numpy as np
 
+from ...core.asset.loop import maybe_loop
 from ...core.errors import InputError
 from ...core.fileio import publish, temp_path
 from ...core.formats import FORMATS, by_flag
@@ -32,16 +33,21 @@ def check_wanted(wanted: dict) -> None:
 
 
 def write_outputs(tree: Tree3D, out_dir: str, wanted: dict, overwrite: bool = False,
-                  fresh_scene: bool = True, report=print, leaf_image: str | None = None) -> dict:
+                  fresh_scene: bool = True, report=print, leaf_image: str | None = None,
+                  loop_s: float = 0.0) -> dict:
     """Build ``tree`` in the scene and write the ``wanted`` files into ``out_dir``.
 
     ``wanted`` = {format flag: bool} (:mod:`core.formats`); ``fresh_scene`` starts from an empty
-    scene (batch runs); returns {format flag: path}.
+    scene (batch runs); ``loop_s`` > 0 cuts the motion to a seamless loop of about that many
+    seconds first (:func:`core.asset.loop.loop_tree`); returns {format flag: path}.
     """
     check_wanted(wanted)
     for path in wanted_files(out_dir, wanted):
         if os.path.exists(path) and not overwrite:
             raise InputError(f"{path} exists; pass --force to overwrite or choose another --out")
+    tree, note = maybe_loop(tree, loop_s)
+    if note:
+        report(f"[loop] {note}")
     if fresh_scene:
         bpy.ops.wm.read_factory_settings(use_empty=True)
     context = bpy.context
