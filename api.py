@@ -137,10 +137,10 @@ def generate(species: str | os.PathLike = "broad", n: int = 1, envelope: str | N
 
 def loop(tree: Tree3D, seconds: float) -> Tree3D:
     """``tree`` cut to a seamless loop of about ``seconds`` (a length past the clip's takes the whole
-    clip with its seam blended; :func:`core.asset.loop.loop_tree`): ``L + 1`` frames, the last
+    clip with its seam blended; :func:`core.loop.loop_tree`): ``L + 1`` frames, the last
     equal to the first, the leaves' flutter and flap on whole periods; built in Blender its action
     is named ``<tree>_loop`` and every export names its animation so."""
-    from .core.asset.loop import loop_tree
+    from .core.loop import loop_tree
     return loop_tree(tree, seconds)[0]
 
 

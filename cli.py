@@ -23,7 +23,6 @@ from types import SimpleNamespace
 
 from . import __version__, api
 from .core import pipeline
-from .core.asset.loop import LoopSettings
 from .core.detail.branch_mesh import MeshParams
 from .core.detail.leaf_clusters import LeafParams
 from .core.detail.twigs import TwigParams
@@ -33,6 +32,7 @@ from .core.fileio import atomic_savez
 from .core.formats import FORMATS
 from .core.generate import batch as gb
 from .core.generate import species
+from .core.loop import LoopSettings
 from .core.params import spec
 from .core.reconstruct import node_motion, overlay, skeleton_io
 from .core.reconstruct.motion import MotionParams
@@ -237,7 +237,8 @@ def _plan_generation(args):
     req = gb.GenerateRequest(count=args.generate, species=args.species, envelope=args.envelope, wind=args.wind,
                              audio=args.audio, seed=args.seed, nodes=args.nodes, frames_out=args.frames_out,
                              seconds=args.seconds, height_m=args.height,
-                             leaf_density=0.0 if args.no_leaves else args.leaf_density, twig_depth=args.twigs)
+                             leaf_density=0.0 if args.no_leaves else args.leaf_density, twig_depth=args.twigs,
+                             loop_s=args.loop)
     gb.check_request(req, has_video=args.video is not None)
     plan = SimpleNamespace(req=req, model=None, species_label=None, envelope=None, envelope_label=None)
     if req.species is not None:

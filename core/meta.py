@@ -39,6 +39,7 @@ class TreeMeta(TypedDict, total=False):
     limbs: str
     solver: str
     loop: dict[str, Any]
+    periodic: dict[str, Any]
     base_px: list[float]
     video_size: list[int]
     branch_fit: dict[str, Any]
@@ -93,8 +94,11 @@ KEYS: dict[str, Key] = {
     "limbs": Key("traced|grown|...", ("pipeline.build_3d",),
                  "the 2D skeleton's kind: grown where the crown's limbs were grown from a species "
                  "(asset.roles marks those nodes as grown limbs)"),
-    "loop": Key("{frames, start, blend, seconds, whole_clip, flutter_hz, flap_hz, mismatch_deg}", ("asset.loop",),
-                "the seamless loop the motion was cut to (asset/loop.py); absent: the clip as measured"),
+    "periodic": Key("{frames, seconds}", ("growth.grow_tree",),
+                    "a generated tree's sway repeats after these frames (whole-period frequencies): "
+                    "a loop by construction, its last frame the first"),
+    "loop": Key("{frames, start, blend, seconds, whole_clip, flutter_hz, flap_hz, mismatch_deg}", ("loop.loop_tree",),
+                "the seamless loop the motion was cut to (loop.py); absent: the clip as measured"),
     "solver": Key("probabilistic|deterministic", ("pipeline.build_3d",), "the 3D motion solver used"),
     "base_px": Key("[x, y] px", ("pipeline.build_3d",),
                    "the trunk base in frame 1 (after the branch fit moved the trunk onto its centre line)"),

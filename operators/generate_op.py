@@ -13,11 +13,11 @@ import os
 import bpy
 import numpy as np
 
-from ..core.asset.loop import maybe_loop
 from ..core.envelope import envelope_from_meta
 from ..core.errors import InputError
 from ..core.generate import envelopes, forest, growth, species
 from ..core.job import Job
+from ..core.loop import maybe_loop
 from ..core.progress import sub_progress
 from . import jobs
 from .scene import stored, timing, trees
@@ -97,7 +97,8 @@ def grow_params(props, model_frames: int | None = None, scene=None) -> growth.Gr
     frames = frames or model_frames or 250
     return growth.GrowParams(seed=props.gen_seed, height_m=props.gen_height, node_budget=props.gen_nodes,
                              n_frames=int(frames), fps=fps, wind=props.gen_wind, twig_depth=props.gen_twig_depth,
-                             leaf_density=props.gen_leaf_density if props.build_leaves else 0.0)
+                             leaf_density=props.gen_leaf_density if props.build_leaves else 0.0,
+                             loop_s=props.loop_seconds)        # a loop: grown on whole periods
 
 
 def audio_path(props) -> str | None:

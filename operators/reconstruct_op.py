@@ -13,9 +13,9 @@ import bpy
 import numpy as np
 
 from ..core import pipeline
-from ..core.asset.loop import maybe_loop
 from ..core.errors import InputError
 from ..core.job import Job
+from ..core.loop import maybe_loop
 from ..core.reconstruct.node_motion import confidence_summary, low_share
 from ..core.reconstruct.video import open_video
 from . import jobs

@@ -1,4 +1,4 @@
-"""Seamless loops (core/asset/loop.py, issue 33): on every sample's true motion (held-out seed 2,
+"""Seamless loops (core/loop.py, issue 33): on every sample's true motion (held-out seed 2,
 the generator's forward kinematics, no video) and on a reconstruction, the loop's seam jumps no
 more than the clip moves in an ordinary frame (pose: the step across the seam ≤ the clip's median
 per-frame step; velocity: the change of step there ≤ 2 × it), the blend adds no step larger than
@@ -9,7 +9,7 @@ import pytest
 import report
 
 from tree_from_video.core import bones
-from tree_from_video.core.asset import loop as lp
+from tree_from_video.core import loop as lp
 from tree_from_video.core.errors import InputError
 from tree_from_video.core.rotations import quat_conj, quat_exp, quat_log, quat_mul
 from tree_from_video.core.tree3d import Tree3D
@@ -114,3 +114,27 @@ def test_a_reconstructions_leaves_loop_on_whole_periods(tmp_path):
     seam, vel, _ = lp.seam_jumps(q[:-1])
     step = lp.clip_step(_local(tree, tree))
     assert seam <= step and vel <= 2 * step
+
+
+def test_a_generated_tree_loops_by_construction():
+    """GrowParams.loop_s: the sway's frequencies on whole periods of the loop, so the grown motion
+    repeats exactly (its last frame is its first) and the loop blends nothing."""
+    from tree_from_video import api
+    from tree_from_video.core.generate.sway import whole_periods
+    np.testing.assert_allclose(whole_periods(np.array([0.26, 0.9, 0.01]), 4.0), [0.25, 1.0, 0.25])
+    tree, = api.generate("broad", node_budget=60, n_frames=300, seed=SEED, loop_s=2.0)
+    fps = tree.fps
+    assert tree.n_frames == round(2.0 * fps) + 1 and tree.meta["periodic"]["frames"] == tree.n_frames - 1
+    height = float(np.ptp(tree.nodes3d[0][:, 2]))
+    assert np.abs(tree.nodes3d[-1] - tree.nodes3d[0]).max() < 1e-5 * height        # exactly periodic
+    looped, cut = lp.loop_tree(tree, 2.0)
+    assert cut.blend == 0 and cut.mismatch_deg == 0.0 and cut.frames == tree.n_frames - 1
+    q = _local(looped, tree)
+    seam, vel, _ = lp.seam_jumps(q[:-1])
+    step = lp.clip_step(_local(tree, tree))
+    assert seam <= step and vel <= 2 * step
+    # the same motion, started elsewhere in its cycle
+    full = _local(tree, tree)[:-1]
+    dots = np.abs(np.sum(np.roll(full, -cut.start, axis=0) * q[:-1], axis=-1))
+    assert dots.min() > 1 - 1e-6
+    assert "grown on whole periods" in lp.describe_loop(cut, fps)

@@ -9,7 +9,7 @@ import pytest
 from test_exports import accessor, read_glb
 
 from tree_from_video import api
-from tree_from_video.core.asset.loop import loop_tree
+from tree_from_video.core.loop import loop_tree
 from tree_from_video.operators.scene import build, export
 
 from trees import empty_scene  # noqa: F401  (autouse fixture)

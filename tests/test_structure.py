@@ -247,12 +247,14 @@ def test_every_key_a_tree_carries_is_documented_and_every_read_key_is_written():
     model = species.load_species(species.species_library()["broad"])
     env = envelope_from_any("circle", 8.0)
     gen = growth.grow_tree(model, env, growth.GrowParams(seed=1, node_budget=60, n_frames=12))
+    from tree_from_video.core.loop import loop_tree                  # a generated loop, looped (no blend)
+    looped = loop_tree(growth.grow_tree(model, env, growth.GrowParams(seed=1, node_budget=30, loop_s=0.5)), 0.5)[0]
     cli_tree = ast.parse(open(os.path.join(ROOT, "cli.py"), encoding="utf-8").read())
     cli_keys = {k.value for n in ast.walk(cli_tree) if isinstance(n, ast.Assign)
                 and any(isinstance(t, ast.Name) and t.id == "meta" for t in n.targets)
                 and isinstance(n.value, ast.Dict) for k in n.value.keys if isinstance(k, ast.Constant)}
     assert cli_keys >= {"video", "frames", "levels", "scale", "version"}
-    carried = set(tree.meta) | set(gen.meta) | cli_keys | set(shot[1].meta)
+    carried = set(tree.meta) | set(gen.meta) | cli_keys | set(shot[1].meta) | set(looped.meta)
     assert carried <= set(KEYS), carried - set(KEYS)
     with tempfile.TemporaryDirectory() as d:
         save_tree(os.path.join(d, "t.npz"), tree)

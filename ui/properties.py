@@ -6,13 +6,13 @@ A setting the core has a parameter for takes its default and limits from the cor
 candidates take their defaults from :class:`MotionParams` / :class:`LiftParams` instances."""
 import bpy
 
-from ..core.asset.loop import LoopSettings
 from ..core.detail.branch_mesh import MeshParams
 from ..core.detail.leaf_clusters import LeafParams
 from ..core.detail.twigs import TwigParams
 from ..core.formats import interchange
 from ..core.generate.batch import GenerateRequest
 from ..core.generate.growth import GrowParams
+from ..core.loop import LoopSettings
 from ..core.pipeline import Settings
 from ..core.reconstruct.lift import LiftParams
 from ..core.reconstruct.motion import MotionParams

@@ -196,11 +196,13 @@ def slerp_to_rest(q: np.ndarray, attenuation: float) -> np.ndarray:
     return np.concatenate([np.cos(h2)[..., None], np.sin(h2)[..., None] * axis], axis=-1)
 
 
-def twig_rotations(driver_q: np.ndarray, lag: int, attenuation: float) -> np.ndarray:
+def twig_rotations(driver_q: np.ndarray, lag: int, attenuation: float, period: int | None = None) -> np.ndarray:
     """``Q_twig(t) = slerp(Q(t − lag), I, attenuation)`` for ``driver_q (F, M, 4)``; frames
-    before ``lag`` use frame 0 (the rest)."""
+    before ``lag`` use frame 0 (the rest), or with ``period`` (a motion that repeats after that
+    many frames, a generated loop) the frames one period later: the twigs repeat too."""
     F = len(driver_q)
-    src = np.clip(np.arange(F) - int(lag), 0, F - 1)
+    src = np.arange(F) - int(lag)
+    src = np.mod(src, int(period)) if period else np.clip(src, 0, F - 1)
     return slerp_to_rest(driver_q[src], attenuation)
 
 
@@ -306,7 +308,8 @@ def add_twigs(tree: Tree3D, params: TwigParams | None = None,
     t_root = np.concatenate(new_root)
     out_nodes = np.empty((len(nodes), n_next, 3), np.float64)
     out_nodes[:, :N] = nodes
-    out_nodes[:, N:] = animate(nodes, parents, t_root, t_pos, p.lag_frames, p.attenuation)
+    period = (tree.meta.get("periodic") or {}).get("frames")      # a generated loop: twigs loop too
+    out_nodes[:, N:] = animate(nodes, parents, t_root, t_pos, p.lag_frames, p.attenuation, period)
     report(progress, "twigs", 1.0)
     return _carry(tree, Tree3D(
         np.concatenate([parents, t_parent]).astype(np.int32), out_nodes.astype(np.float32),
@@ -388,7 +391,7 @@ def _fit(base: np.ndarray, vec: np.ndarray, env, min_len: float, seen=None) -> n
 
 
 def animate(nodes: np.ndarray, parents: np.ndarray, twig_root: np.ndarray, twig_rest: np.ndarray,
-            lag: int, attenuation: float) -> np.ndarray:
+            lag: int, attenuation: float, period: int | None = None) -> np.ndarray:
     """Positions ``(F, M, 3)`` of twig nodes: ``x_j(t) = x_a(t) + Q_twig(t) (x_j(0) − x_a(0))`` with
     ``a = twig_root (M,)`` (a tip of the reconstructed tree ``parents (N,)``, ``nodes (F, N, 3)``),
     ``twig_rest (M, 3)`` and ``Q_twig`` from :func:`twig_rotations` of the bone ending at ``a``."""
@@ -397,6 +400,6 @@ def animate(nodes: np.ndarray, parents: np.ndarray, twig_root: np.ndarray, twig_
     edges = bones.bone_edges(parents)
     bone_of_node[edges[:, 1]] = np.arange(len(edges))
     roots, inverse = np.unique(twig_root, return_inverse=True)
-    qt = twig_rotations(q[:, bone_of_node[roots]], lag, attenuation)          # (F, R, 4)
+    qt = twig_rotations(q[:, bone_of_node[roots]], lag, attenuation, period)  # (F, R, 4)
     offset = twig_rest - nodes[0, twig_root]                                  # (M, 3)
     return nodes[:, twig_root] + rotations.quat_rotate(qt[:, inverse], offset[None])

@@ -24,6 +24,7 @@ import numpy as np
 
 from ..detail.twigs import TwigParams
 from ..errors import InputError
+from ..loop import LoopSettings
 from ..params import check, param, same_as
 from ..progress import ProgressFn
 
@@ -40,7 +41,8 @@ class GenerateRequest:
     from the reconstruction); ``envelope``: a topiary name, an image path or None (the
     reconstruction's envelope, else ``default_envelope``); ``frames_out`` / ``seconds`` the length
     of each animation (None: the species' source clip); ``height_m`` of the envelope;
-    ``leaf_density`` 0 for bare trees; ``twig_depth`` generations of twigs (0: none)."""
+    ``leaf_density`` 0 for bare trees; ``twig_depth`` generations of twigs (0: none); ``loop_s`` > 0:
+    each tree sways in a loop of that many seconds by construction (``GrowParams.loop_s``)."""
 
     count: int = param(1, 1, MAX_TREES, what="--generate")
     species: str | None = None
@@ -54,6 +56,7 @@ class GenerateRequest:
     height_m: float = param(10.0, 0.0, 1000.0, lo_open=True, what="--height", unit="m")
     leaf_density: float = 1.0
     twig_depth: int = same_as(TwigParams, "depth")
+    loop_s: float = same_as(LoopSettings, "seconds")
 
 
 def tree_folders(count: int) -> list[str]:
@@ -169,7 +172,7 @@ def generate_trees(model, species_label: str, envelope, envelope_label: str, req
         log(f"[generate] tree {i + 1}/{req.count}: seed {seed}")
         params = GrowParams(seed=seed, height_m=None, node_budget=int(req.nodes), n_frames=n_frames,
                             wind=float(req.wind), leaf_density=float(req.leaf_density),
-                            twig_depth=int(req.twig_depth),
+                            twig_depth=int(req.twig_depth), loop_s=float(req.loop_s),
                             name=f"{model.name}_{seed}")
         tree = grow_tree(model, envelope, params, audio=req.audio, progress=progress)
         d = os.path.join(out_dir, folder)

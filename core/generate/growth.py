@@ -47,6 +47,7 @@ from ..detail.branch_mesh import MeshParams
 from ..detail.twigs import TwigParams, add_twigs
 from ..envelope import Envelope
 from ..errors import InputError
+from ..loop import LoopSettings
 from ..meta import TreeMeta
 from ..outline import Outline, polygon_to_mask
 from ..params import check, same_as
@@ -85,7 +86,9 @@ class GrowParams:
     nodes (0: none; the reconstruction's default); ``conifer`` (None: the model's); ``name``;
     ``curliness`` and ``bark``, the branch mesh's look, recorded in ``meta["mesh"]`` as a
     reconstruction records it (the same defaults: a grown tree looks like a reconstructed one
-    wherever it is built)."""
+    wherever it is built); ``loop_s`` > 0: the tree sways in a loop by construction, ``round(loop_s
+    · fps) + 1`` frames (``n_frames`` ignored) on whole-period frequencies, the last frame the
+    first (``meta["periodic"]``; :func:`core.loop.loop_tree` then blends nothing)."""
 
     seed: int = 0
     height_m: float | None = None
@@ -114,6 +117,7 @@ class GrowParams:
     name: str | None = None
     curliness: float = same_as(MeshParams, "curliness")
     bark: str = same_as(MeshParams, "bark")
+    loop_s: float = same_as(LoopSettings, "seconds")
 
 
 @dataclass
@@ -502,6 +506,10 @@ def grow_tree(model: SpeciesModel, envelope: Envelope, params: GrowParams | None
         env = scale_envelope(env, p.height_m / env_h)
     fps = float(p.fps or model.fps)
     n_frames = int(p.n_frames)
+    period_s = None
+    if p.loop_s > 0 and audio is None:             # a recording's gusts do not repeat: blended later
+        loop_frames = max(int(round(p.loop_s * fps)), 2)
+        n_frames, period_s = loop_frames + 1, loop_frames / fps
     conifer = model.conifer if p.conifer is None else bool(p.conifer)
     gains = None
     if audio is not None:
@@ -526,7 +534,7 @@ def grow_tree(model: SpeciesModel, envelope: Envelope, params: GrowParams | None
         mu = float(lifted.mu)
     report(progress, "animating", 0.85)
     phase = None if p.tree_phase is None else np.asarray(p.tree_phase, float)
-    rot = sample_rotations(model, g.parents, rest, n_frames, fps, rng_sway, p.time_offset_s, phase)
+    rot = sample_rotations(model, g.parents, rest, n_frames, fps, rng_sway, p.time_offset_s, phase, period_s)
     # the species' own sway (wind 1) sways as far as its source did and stays inside the envelope;
     # the wind then scales it (×2 is ×2)
     rot = rot * match_excursion(g.parents, rest, rot, model.sway_excursion)
@@ -547,6 +555,8 @@ def grow_tree(model: SpeciesModel, envelope: Envelope, params: GrowParams | None
             "leaf_density": float(p.leaf_density), "node_budget": int(p.node_budget),
             "time_offset_s": float(p.time_offset_s), "sway_scale": float(sway_scale),
             "mesh": {"curliness": float(p.curliness), "bark": str(p.bark), "seed": int(p.seed)}}
+    if period_s is not None:
+        meta["periodic"] = {"frames": int(n_frames - 1), "seconds": float(period_s)}
     tree = Tree3D(g.parents.astype(np.int32), nodes3d.astype(np.float32), radius,
                   branching_level(g.parents).astype(np.int32), fps, p.name or f"{model.name}_{int(p.seed)}", meta)
     if not palm and p.twig_depth > 0:

@@ -26,10 +26,17 @@ from .features import unshift_tuple
 from .species import AxisMotion, SpeciesModel
 
 
+def whole_periods(freqs_hz: np.ndarray, period_s: float) -> np.ndarray:
+    """``freqs_hz`` moved to the nearest multiple (≥ 1) of ``1 / period_s``: every component then
+    repeats after ``period_s`` seconds, and so does their sum (a loop by construction)."""
+    return np.maximum(np.round(np.asarray(freqs_hz, np.float64) * period_s), 1.0) / period_s
+
+
 def sample_axis(m: AxisMotion, rho: np.ndarray, t: np.ndarray, rng: np.random.Generator,
-                tree_phase: float) -> np.ndarray:
+                tree_phase: float, period_s: float | None = None) -> np.ndarray:
     """``(F, M)`` rotation (radians) about one axis for ``M`` nodes of normalized depth ``rho
-    (M,)`` at times ``t (F,)`` seconds (module docstring)."""
+    (M,)`` at times ``t (F,)`` seconds (module docstring); with ``period_s`` the frequencies on
+    whole periods of it (:func:`whole_periods`)."""
     M = len(rho)
     e = rng.dirichlet(m.energy, size=M)
     e = np.where(np.isfinite(e), np.maximum(e, 0.0), 0.0)
@@ -44,16 +51,18 @@ def sample_axis(m: AxisMotion, rho: np.ndarray, t: np.ndarray, rng: np.random.Ge
     phi = tree_phase + m.phase_spread * rng.standard_normal(M)
     amp = np.sqrt(2.0) * rms[:, None] * np.sqrt(e)               # (M, K)
     theta = psi + phi[:, None]
-    arg = 2 * np.pi * np.outer(t, m.freqs_hz)                    # (F, K)
+    freqs = m.freqs_hz if period_s is None else whole_periods(m.freqs_hz, period_s)
+    arg = 2 * np.pi * np.outer(t, freqs)                         # (F, K)
     return np.cos(arg) @ (amp * np.cos(theta)).T - np.sin(arg) @ (amp * np.sin(theta)).T
     # cos(x + θ) = cos x cos θ − sin x sin θ, summed over k as two (F, K) @ (K, M) products
 
 
 def sample_rotations(model: SpeciesModel, parents: np.ndarray, rest: np.ndarray, n_frames: int, fps: float,
                      rng: np.random.Generator, time_offset_s: float = 0.0,
-                     tree_phase: np.ndarray | None = None) -> np.ndarray:
+                     tree_phase: np.ndarray | None = None, period_s: float | None = None) -> np.ndarray:
     """``(F, N, 3)`` local rotation vectors (radians) for every node (root row zero), twist
-    along each bone removed. ``rest (N, 3)`` metres; ``tree_phase (3,)`` radians (random if None)."""
+    along each bone removed. ``rest (N, 3)`` metres; ``tree_phase (3,)`` radians (random if None);
+    ``period_s``: the sway repeats after it exactly (frequencies on whole periods)."""
     parents = np.asarray(parents)
     N = len(parents)
     depth = node_depths(parents)
@@ -64,7 +73,7 @@ def sample_rotations(model: SpeciesModel, parents: np.ndarray, rest: np.ndarray,
     moving = np.flatnonzero(parents >= 0)
     w = np.zeros((n_frames, N, 3))
     for a in range(3):
-        w[:, moving, a] = sample_axis(model.motion[a], rho[moving], t, rng, float(tree_phase[a]))
+        w[:, moving, a] = sample_axis(model.motion[a], rho[moving], t, rng, float(tree_phase[a]), period_s)
     d = np.zeros((N, 3))
     d[moving] = rest[moving] - rest[parents[moving]]
     d /= np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-12)

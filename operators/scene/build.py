@@ -40,7 +40,7 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
     tree frame 0, roll 0, connected to the parent bone; the bones in a hidden bone collection
     ``"Branches"``, so the viewport draws no sticks) whose pose bones are keyed in QUATERNION
     mode on the scene frames ``1..F`` where the motion needs a key (action ``"<name> Sway"``, or
-    ``"<name>_loop"`` for a loop, :func:`core.asset.loop.loop_tree`:
+    ``"<name>_loop"`` for a loop, :func:`core.loop.loop_tree`:
     :func:`core.keys.tree_keys`, Bezier keys or baked samples, no node more than ``KEY_TOLERANCE``
     of the height off the full motion at any frame; ``every_key``: a LINEAR key on every frame); the first tree of
     a scene sets its fps (``fps`` int + ``fps_base``) and frame range ``1..F``, a later one only

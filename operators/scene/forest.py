@@ -7,7 +7,7 @@ import time
 
 import bpy
 
-from ...core.asset.loop import maybe_loop
+from ...core.loop import maybe_loop
 from .build import build_tree
 from .objects import remove_collection, unique_collection_name
 from .timing import fit_scene_timing
@@ -18,7 +18,7 @@ class ForestBuild:
     """Builds the grown trees into one collection ``name``, a few per :meth:`step`, each at its
     slot's position and turn, with the branch mesh's ``curliness`` and ``bark``; all trees share the
     first one's bark and leaf materials; ``loop_s`` > 0 cuts each tree's motion to a seamless loop of
-    about that many seconds (:func:`core.asset.loop.maybe_loop`). ``remove()`` undoes it all."""
+    about that many seconds (:func:`core.loop.maybe_loop`). ``remove()`` undoes it all."""
 
     def __init__(self, context, name: str, model, trees, slots, *, curliness: float | None = None,
                  bark: str | None = None, loop_s: float = 0.0):

@@ -12,10 +12,10 @@ import tempfile
 import bpy
 import numpy as np
 
-from ...core.asset.loop import maybe_loop
 from ...core.errors import InputError
 from ...core.fileio import publish, temp_path
 from ...core.formats import FORMATS, by_flag
+from ...core.loop import maybe_loop
 from ...core.tree3d import Tree3D
 from . import export
 from .build import build_tree
@@ -39,7 +39,7 @@ def write_outputs(tree: Tree3D, out_dir: str, wanted: dict, overwrite: bool = Fa
 
     ``wanted`` = {format flag: bool} (:mod:`core.formats`); ``fresh_scene`` starts from an empty
     scene (batch runs); ``loop_s`` > 0 cuts the motion to a seamless loop of about that many
-    seconds first (:func:`core.asset.loop.loop_tree`); returns {format flag: path}.
+    seconds first (:func:`core.loop.loop_tree`); returns {format flag: path}.
     """
     check_wanted(wanted)
     for path in wanted_files(out_dir, wanted):

@@ -13,10 +13,12 @@ so the loop's last frame ``q(a + L − 1)`` is followed by ``q_loop(0) = q(a + L
 motion itself took there: pose and angular velocity go on across the wrap, and the blend's weight
 has zero slope at both ends (no kink where it starts or stops). The loop is a cycle with no seam
 of its own; it is made to start (:func:`calm_seam`) where the step into it and the change of step
-are smallest, so the exported clip's first and last frames meet where the tree moves least. The window's start ``a`` is the
-one whose blend has the least to do (the smallest mean squared angle between ``q(a + L + t)`` and
-``q(a + t)`` over the blend, every bone). A loop as long as the clip or longer takes the whole
-clip: ``L = F − D``.
+are smallest, so the exported clip's first and last frames meet where the tree moves least.
+The window's start ``a`` is the one whose blend has the least to do (the smallest mean squared
+angle between ``q(a + L + t)`` and ``q(a + t)`` over the blend, every bone). A loop as long as
+the clip or longer takes the whole clip: ``L = F − D``. A generated tree grown for the loop
+(``GrowParams.loop_s``: frequencies on whole periods, ``meta["periodic"]``) already repeats
+exactly: nothing is blended.
 
 The looped tree has ``L + 1`` frames, the last equal to the first (an engine interpolating from
 the last key back to the first plays the seam as one ordinary step). Leaf flutter is played as its
@@ -32,13 +34,13 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .. import bones
-from ..errors import InputError
-from ..keys import dominant_hz
-from ..meta import TreeMeta
-from ..params import param
-from ..rotations import make_continuous, quat_conj, quat_exp, quat_log, quat_mul
-from ..tree3d import Tree3D
+from . import bones
+from .errors import InputError
+from .keys import dominant_hz
+from .meta import TreeMeta
+from .params import param
+from .rotations import make_continuous, quat_conj, quat_exp, quat_log, quat_mul
+from .tree3d import Tree3D
 
 
 @dataclass
@@ -181,16 +183,24 @@ def loop_tree(tree: Tree3D, seconds: float) -> tuple[Tree3D, LoopReport]:
         raise InputError(f"loop length {seconds} s: give a positive number of seconds, e.g. 10")
     F = tree.n_frames
     want = int(round(seconds * fps))
-    D = int(np.clip(round(BLEND_S * fps), 2, max(2, min(want, F) // 4)))
-    whole = want + D > F
-    L = F - D if whole else want
-    if L < MIN_FRAMES:
-        raise InputError(f"the clip's {F} frames make no loop ({L} frames after a {D}-frame blend); "
-                         f"reconstruct at least {MIN_FRAMES + 2 * D} frames or drop --loop")
     rest_pos = np.asarray(tree.nodes3d[0], np.float64)
     rest = bones.rest_frames(tree.parents, rest_pos)
     local = bones.local_rotations(tree.parents, tree.nodes3d, rest)
-    q, a, bridged = loop_rotations(local, L, D)
+    periodic = tree.meta.get("periodic")
+    if periodic and abs(int(periodic["frames"]) - want) <= 1 and F == int(periodic["frames"]) + 1:
+        # grown on whole periods (growth.grow_tree): already a loop, nothing to blend
+        L, D, whole, bridged = F - 1, 0, True, 0.0
+        q = make_continuous(local[:L])
+        a = calm_seam(q, clip_step(local))
+        q = np.roll(q, -a, axis=0)
+    else:
+        D = int(np.clip(round(BLEND_S * fps), 2, max(2, min(want, F) // 4)))
+        whole = want + D > F
+        L = F - D if whole else want
+        if L < MIN_FRAMES:
+            raise InputError(f"the clip's {F} frames make no loop ({L} frames after a {D}-frame blend); "
+                             f"reconstruct at least {MIN_FRAMES + 2 * D} frames or drop --loop")
+        q, a, bridged = loop_rotations(local, L, D)
     q = np.concatenate([q, q[:1]])                                   # frame L = frame 0
     nodes = bones.pose(tree.parents, rest_pos, rest, q)[0].astype(np.float32)
     leaves = tree.leaves
@@ -215,8 +225,10 @@ def loop_tree(tree: Tree3D, seconds: float) -> tuple[Tree3D, LoopReport]:
 
 def describe_loop(report: LoopReport, fps: float) -> str:
     """One line for the log and the panel: the loop's length, where it starts, the blend."""
-    whole = " (the whole clip less its blend)" if report.whole_clip else ""
     leaves = f"; leaf flutter {report.flutter_hz:.2f} Hz" if report.flutter_hz > 0 else ""
+    if report.blend == 0:
+        return f"a {report.seconds:.2f} s loop of {report.frames} frames, grown on whole periods (nothing blended){leaves}"
+    whole = " (the whole clip less its blend)" if report.whole_clip else ""
     return (f"a {report.seconds:.2f} s loop of {report.frames} frames{whole} from frame {report.start}, "
             f"{report.blend / fps:.2f} s blended across {report.mismatch_deg:.1f}° at its seam{leaves}")
 
