@@ -230,6 +230,7 @@ def test_every_key_a_tree_carries_is_documented_and_every_read_key_is_written():
     from tree_from_video.core.detail.twigs import TwigParams
     from tree_from_video.core.generate import growth, species
     from tree_from_video.core.generate.envelopes import envelope_from_any
+    from tree_from_video.core.loop import loop_tree
     from tree_from_video.core.meta import KEYS
     from tree_from_video.core.tree3d import load_tree, save_tree
     video = os.path.join(ROOT, "sample_videos", "broad")
@@ -247,7 +248,7 @@ def test_every_key_a_tree_carries_is_documented_and_every_read_key_is_written():
     model = species.load_species(species.species_library()["broad"])
     env = envelope_from_any("circle", 8.0)
     gen = growth.grow_tree(model, env, growth.GrowParams(seed=1, node_budget=60, n_frames=12))
-    from tree_from_video.core.loop import loop_tree                  # a generated loop, looped (no blend)
+    # a generated loop, looped (nothing blended)
     looped = loop_tree(growth.grow_tree(model, env, growth.GrowParams(seed=1, node_budget=30, loop_s=0.5)), 0.5)[0]
     cli_tree = ast.parse(open(os.path.join(ROOT, "cli.py"), encoding="utf-8").read())
     cli_keys = {k.value for n in ast.walk(cli_tree) if isinstance(n, ast.Assign)
