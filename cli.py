@@ -122,6 +122,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="cut the animation the Blender outputs carry to a seamless loop of about this many "
                         "seconds (a length past the clip's takes the whole clip, its seam blended; named "
                         "<tree>_loop so engines loop it); tree3d.npz keeps the whole motion (default: no loop)")
+    p.add_argument("--bones", type=int, default=None, metavar="N",
+                   help="a game rig of at most N bones in the Blender outputs (e.g. 16, 32, 64, 128): the trunk "
+                        "and the bones that move the tree most kept, the rest (leaf clusters too) joined rigidly to "
+                        "them, the motion re-fitted; the vertex error is printed (default: every bone)")
     for f in FORMATS:                      # the output formats' registry: --fbx --usd --gltf --blend --preview
         p.add_argument(f"--{f.flag}", action="store_true", help=f.help.format(file=f.file))
     p.add_argument("--no-video", action="store_true", help="skip overlay.mp4 (overlay.png is still written)")
@@ -209,7 +213,12 @@ def _wanted(args) -> tuple[dict, list[str]]:
 
 
 def _check_loop(args) -> None:
-    """--loop: a positive number of seconds, for the Blender outputs."""
+    """--loop: a positive number of seconds, and --bones: at least 1; both for the Blender outputs."""
+    if args.bones is not None and args.bones < 1:
+        raise InputError(f"--bones {args.bones}: give at least 1 (e.g. 64), or drop it for every bone")
+    if args.bones is not None and not any(_wanted(args)[0].values()):
+        raise InputError("--bones cuts the rig of the Blender outputs; add one of "
+                         f"{', '.join('--' + f.flag for f in FORMATS)}")
     if not spec(LoopSettings, "seconds").ok(args.loop):
         raise InputError(f"--loop {args.loop}: give a number of seconds, {spec(LoopSettings, 'seconds').describe()}, e.g. 10")
     if args.loop > 0 and not any(_wanted(args)[0].values()):
@@ -261,7 +270,8 @@ def _run_generation(args, plan, outputs, wanted) -> int:
             tree.meta["mesh"] = {"curliness": float(args.curliness), "bark": args.bark,     # the branch mesh's look
                                  "seed": int(tree.meta.get("seed", 0))}
             return outputs.write_outputs(tree, folder, wanted, overwrite=args.force, fresh_scene=True,
-                                         report=log, leaf_image=args.leaf_image, loop_s=args.loop)
+                                         report=log, leaf_image=args.leaf_image, loop_s=args.loop,
+                                         bone_budget=args.bones)
     t0 = time.monotonic()
     entries = gb.generate_trees(plan.model, plan.species_label, plan.envelope, plan.envelope_label, plan.req,
                                 args.out, write, _progress_printer(args.quiet), log)
@@ -366,7 +376,7 @@ def _write_tree(args, res, tree, out: str, outputs, wanted, exports: bool, cb) -
                            res.foreground.mask if res.foreground is not None else None)
     if outputs is not None and exports:              # with --generate the exports are per generated tree
         outputs.write_outputs(tree, out, wanted, overwrite=args.force, leaf_image=args.leaf_image,
-                              report=lambda m: sys.stderr.write(m + "\n"), loop_s=args.loop)
+                              report=lambda m: sys.stderr.write(m + "\n"), loop_s=args.loop, bone_budget=args.bones)
     conf = res.skeleton.confidence
     sure = "" if conf is None else f", {node_motion.confidence_summary(conf)}"
     sys.stderr.write(f"done: {res.skeleton.n_nodes} nodes, {res.tracks.n_tracks} tracks, "

@@ -73,7 +73,8 @@ def test_every_vertex_rides_the_bone_it_sits_on(grown):
     assert set(np.unique(branches.bone)) == set(range(B))
     # a leaf card's vertex is within its cluster's reach of the cluster's bone head
     lv = grown.leaves
-    reach = np.linalg.norm(leaves.co - rig.head[B + leaves.bone], axis=1)
+    assert leaves.bone.min() >= B                                         # the rig's leaf bones follow its branches
+    reach = np.linalg.norm(leaves.co - rig.head[leaves.bone], axis=1)
     assert reach.max() <= (lv.radius + lv.leaf_size) * float(lv.scales().max()) * 1.01 + 1e-6
     assert leaves.quads == lv.polygons and leaves.flap is not None
     assert leaves.flap.offsets.shape == (4, len(leaves.co), 3) and leaves.flap.weights.shape == (grown.n_frames, 4)

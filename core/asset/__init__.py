@@ -11,6 +11,7 @@ import time
 from dataclasses import dataclass, field
 
 from ..tree3d import Tree3D
+from .budget import BudgetReport, budget_rig
 from .look import Look, tree_look
 from .meshes import BranchMesh, LeafMesh, branch_arrays, leaf_arrays
 from .rig import Rig, tree_rig
@@ -20,22 +21,25 @@ from .rig import Rig, tree_rig
 class TreeAsset:
     """``rig``, ``branches`` (None: no branch mesh asked for), ``leaves`` (None: no leaves),
     ``look``; ``timings`` seconds of each part (``rig arrays``: bones, rotations and key
-    reduction; ``mesh arrays``; ``leaf arrays``)."""
+    reduction; ``mesh arrays``; ``leaf arrays``; ``bone budget``); ``budget`` the bone budget's
+    report (None: every bone kept)."""
 
     rig: Rig
     branches: BranchMesh | None
     leaves: LeafMesh | None
     look: Look
     timings: dict = field(default_factory=dict)
+    budget: BudgetReport | None = None
 
 
 def tree_asset(tree: Tree3D, *, mesh: bool = True, leaves: bool = True, sides: int = 8,
                curliness: float | None = None, bark: str | None = None, leaf_image: str | None = None,
-               every_key: bool = False) -> TreeAsset:
+               every_key: bool = False, bone_budget: int | None = None) -> TreeAsset:
     """Everything a writer copies of ``tree``: keys reduced within :data:`core.keys.KEY_TOLERANCE`
     (every frame with ``every_key``), the branch mesh with ``mesh``, the leaf bones and cards with
     ``leaves`` (when the tree has clusters), the look (``sides``, ``curliness``, ``bark`` and
-    ``leaf_image`` win over what the tree records, :func:`.look.tree_look`)."""
+    ``leaf_image`` win over what the tree records, :func:`.look.tree_look`); ``bone_budget``: the
+    rig cut to at most that many bones, its motion re-fitted (:func:`.budget.budget_rig`)."""
     look = tree_look(tree, sides, curliness, bark, leaf_image)
     timings = {}
     t = time.perf_counter()
@@ -46,6 +50,11 @@ def tree_asset(tree: Tree3D, *, mesh: bool = True, leaves: bool = True, sides: i
     timings["mesh arrays"] = time.perf_counter() - t
     t = time.perf_counter()
     leafy = rig.leaf_keys is not None
-    leaf_mesh = leaf_arrays(tree, look) if leafy else None
+    leaf_mesh = leaf_arrays(tree, look, rig.n_branch) if leafy else None
     timings["leaf arrays"] = time.perf_counter() - t
-    return TreeAsset(rig, branches, leaf_mesh, look, timings)
+    report = None
+    if bone_budget is not None:
+        t = time.perf_counter()
+        rig, branches, leaf_mesh, report = budget_rig(tree, rig, branches, leaf_mesh, int(bone_budget))
+        timings["bone budget"] = time.perf_counter() - t
+    return TreeAsset(rig, branches, leaf_mesh, look, timings, report)

@@ -17,8 +17,8 @@ from .look import Look
 class BranchMesh:
     """Tapered tubes, one per branch bone (:func:`core.detail.branch_mesh.tube_arrays`): ``co (V,
     3)`` metres at rest; polygons as ``loop_vert (L,)``, ``loop_start``, ``loop_total (P,)``,
-    ``smooth (P,)`` bool; ``uv (L, 2)`` on the bark's UV square; ``bone (V,)`` int32 the branch
-    bone carrying each vertex."""
+    ``smooth (P,)`` bool; ``uv (L, 2)`` on the bark's UV square; ``bone (V,)`` int32 the rig's
+    bone carrying each vertex (an index into ``Rig.names``)."""
 
     co: np.ndarray
     loop_vert: np.ndarray
@@ -44,8 +44,9 @@ class LeafFlap:
 class LeafMesh:
     """The leaf cards of all clusters, quads (vertices ``4q … 4q + 3`` are card ``q``): ``co (V,
     3)`` metres at rest, ``uv (V, 2)``, ``colour (V, 3)`` sRGB each cluster's video colour divided by
-    the look's leaf tint (texture × colour = the video's), ``bone (V,)`` int32 the leaf bone
-    (cluster) carrying each vertex, ``flap`` (None when the leaves do not flap)."""
+    the look's leaf tint (texture × colour = the video's), ``bone (V,)`` int32 the rig's bone
+    carrying each vertex (an index into ``Rig.names``), ``flap`` (None when the leaves do not
+    flap)."""
 
     co: np.ndarray
     uv: np.ndarray
@@ -71,9 +72,10 @@ def branch_arrays(tree: Tree3D, rest: np.ndarray, params: bm.MeshParams) -> Bran
                       np.asarray(g["vert_bone"], np.int32))
 
 
-def leaf_arrays(tree: Tree3D, look: Look) -> LeafMesh:
-    """The :class:`LeafMesh` of ``tree``'s clusters (bone ``s`` = cluster ``s``), with the flap of
-    its cards when ``leaf_angle`` and ``leaf_hz`` are positive."""
+def leaf_arrays(tree: Tree3D, look: Look, first_bone: int = 0) -> LeafMesh:
+    """The :class:`LeafMesh` of ``tree``'s clusters (cluster ``s`` on bone ``first_bone + s``: the
+    rig's leaf bones follow its branch bones), with the flap of its cards when ``leaf_angle`` and
+    ``leaf_hz`` are positive."""
     lv = tree.leaves
     assert lv is not None
     g = leaf_mesh(lv)
@@ -84,4 +86,4 @@ def leaf_arrays(tree: Tree3D, look: Look) -> LeafMesh:
         C, S, _ = leaf_flap_offsets(g["co"], lv.leaf_angle, lv.seed)
         flap = LeafFlap(np.stack([C, -C, S, -S]).astype(np.float32), flap_weights(tree.n_frames, tree.fps, lv.leaf_hz))
     return LeafMesh(g["co"].astype(np.float32), g["uv"].astype(np.float32), colour,
-                    np.asarray(g["cluster"], np.int32), flap)
+                    (first_bone + np.asarray(g["cluster"])).astype(np.int32), flap)

@@ -28,7 +28,9 @@ class BoneKeys:
     (F,)`` (1-based, subframes for a variable frame rate); ``keep (F, B)`` bool the frames kept as
     Bezier keys (None: a LINEAR key on every frame); ``sampled (B,)`` bool bones stored as baked
     samples on every frame instead (only for evenly timed clips); ``left``, ``right`` ``(F, B, 4)``
-    the Bezier handles' values at a third of the span (None without ``keep``)."""
+    the Bezier handles' values at a third of the span (None without ``keep``); ``location (F, B,
+    3)`` metres each bone's pose location in its rest frame, keyed on every frame (a bone budget's
+    re-fitted bones, :mod:`.budget`; None: the bones only turn)."""
 
     local: np.ndarray
     frames: np.ndarray
@@ -36,6 +38,7 @@ class BoneKeys:
     sampled: np.ndarray
     left: np.ndarray | None = None
     right: np.ndarray | None = None
+    location: np.ndarray | None = None
 
 
 @dataclass

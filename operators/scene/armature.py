@@ -90,7 +90,8 @@ def _edit_bones(data, rig_data: Rig) -> list:
 def key_pose(rig, keys: BoneKeys, names: list[str], action_name: str, created: Created):
     """Key the branch bones ``names`` as ``keys`` say: baked samples for the sampled bones, Bezier
     keys with the rig's handles on the kept frames (they play :func:`core.keys.interpolate`), or
-    LINEAR keys on every frame. Returns the action and its F-curve maker."""
+    LINEAR keys on every frame; their locations too where the keys carry them (a bone budget).
+    Returns the action and its F-curve maker."""
     action, make_fcurve = action_api.new_action(rig, action_name)
     created.add(bpy.data.actions, action)
     pose_index = {pb.name: i for i, pb in enumerate(rig.pose.bones)}
@@ -110,4 +111,8 @@ def key_pose(rig, keys: BoneKeys, names: list[str], action_name: str, created: C
                 rows = keys.keep[:, b]
                 action_api.write_keys(fc, frames[rows], local[rows, b, i],
                                       (keys.left[rows, b, i], keys.right[rows, b, i]))
+        if keys.location is not None:           # a re-fitted bone (a bone budget) moves as well as turns
+            path = f'pose.bones["{bpy.utils.escape_identifier(name)}"].location'
+            for i in range(3):
+                action_api.write_keys(make_fcurve(path, i, name), frames, keys.location[:, b, i])
     return action, make_fcurve

@@ -31,7 +31,7 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
                mesh: bool = True, sides: int = 8, leaves: bool = True,
                leaf_image: str | None = None, curliness: float | None = None,
                bark: str | None = None, materials: dict | None = None, update_frame: bool = True,
-               keep_view: bool = False, every_key: bool = False) -> dict:
+               keep_view: bool = False, every_key: bool = False, bone_budget: int | None = None) -> dict:
     """Create the animated tree in a new collection ``collection_name`` under the scene collection
     (unselected, its rig active, at the scene's first frame; with ``keep_view`` the selection, the
     active object and the current frame stay as they were: a tree generated into a scene).
@@ -61,7 +61,9 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
     shares one bark and one leaf material) instead of creating them. ``update_frame=False`` skips
     evaluating the scene at its first frame at the end (a forest does it once after all trees).
 
-    The new objects land unselected, the rig active.
+    The new objects land unselected, the rig active. ``bone_budget``: a game rig of at most that
+    many bones, the motion re-fitted (:mod:`core.asset.budget`; no leaf bones, each kept bone keyed
+    on every frame in rotation and location); its report is returned as ``"budget"``.
 
     Returns ``{"collection", "armature", "mesh" (or None), "action", "keys" (the kept keys,
     :class:`core.keys.TreeKeys`, or None with ``every_key``), "material" (or None), "leaves" (or
@@ -79,7 +81,7 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
                          "or replace it (replace=True)")
     # everything Blender copies, computed in the core (rig, keys, meshes, look)
     asset = tree_asset(tree, mesh=mesh, leaves=leaves, sides=sides, curliness=curliness, bark=bark,
-                       leaf_image=leaf_image, every_key=every_key)
+                       leaf_image=leaf_image, every_key=every_key, bone_budget=bone_budget)
     timings = dict(asset.timings)
     # a loop's action is named so engines loop it (Godot loops an animation whose name ends in "loop")
     action_name = f"{collection_name}_loop" if tree.meta.get("loop") else f"{collection_name} Sway"
@@ -121,7 +123,7 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
             if material is None:
                 material = created.add(bpy.data.materials, mats.bark_material(
                     names["material"], look.mesh.bark, look.bark_colour))
-            mesh_obj = branch_mesh.build_mesh(asset.branches, branch_names, rig, coll, names["mesh"], material, created)
+            mesh_obj = branch_mesh.build_mesh(asset.branches, rig_data.names, rig, coll, names["mesh"], material, created)
             timings["mesh"] = time.perf_counter() - t
         leaf_obj = leaf_mat = None
         if asset.leaves is not None:
@@ -132,7 +134,7 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
                     names["leaf_material"], leaf_image, look.leaf_tint, look.leaf_colour))
                 for img in mats.material_images(leaf_mat):
                     created.add(bpy.data.images, img)
-            leaf_obj = leaf_build.build_leaf_mesh(asset.leaves, rig, coll, names["leaves"], rig_data.leaf_names,
+            leaf_obj = leaf_build.build_leaf_mesh(asset.leaves, rig, coll, names["leaves"], rig_data.names,
                                                   leaf_mat, created)
             timings["leaves"] = time.perf_counter() - t
 
@@ -169,6 +171,7 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
         raise
     timings["total"] = time.perf_counter() - t_total
     return {"collection": coll, "armature": rig, "mesh": mesh_obj, "action": action, "keys": rig_data.reduced,
+            "budget": asset.budget,
             "material": material, "leaves": leaf_obj,
             "leaf_polygons": tree.leaves.polygons if leaf_obj is not None else 0, "timings": timings}
 

@@ -122,9 +122,9 @@ def unique_collection_name(base: str) -> str:
 
 
 def weight_by_bone(ob, bone: np.ndarray, names: list[str]) -> None:
-    """One vertex group per bone of ``names`` holding its vertices (``bone (V,)``, contiguous runs)
-    with weight 1 (vertex weights have no foreach_set: one call per group)."""
+    """A vertex group for each bone of ``names`` that carries vertices (``bone (V,)`` indices into
+    ``names``) holding them with weight 1 (vertex weights have no foreach_set: one call per group)."""
     order = np.argsort(bone, kind="stable")
-    cuts = np.searchsorted(bone[order], np.arange(len(names) + 1))
-    for s, bname in enumerate(names):
-        ob.vertex_groups.new(name=bname).add(order[cuts[s]:cuts[s + 1]].tolist(), 1.0, "REPLACE")
+    used, first, count = np.unique(bone[order], return_index=True, return_counts=True)
+    for b, start, n in zip(used, first, count):
+        ob.vertex_groups.new(name=names[b]).add(order[start:start + n].tolist(), 1.0, "REPLACE")

@@ -34,12 +34,13 @@ def check_wanted(wanted: dict) -> None:
 
 def write_outputs(tree: Tree3D, out_dir: str, wanted: dict, overwrite: bool = False,
                   fresh_scene: bool = True, report=print, leaf_image: str | None = None,
-                  loop_s: float = 0.0) -> dict:
+                  loop_s: float = 0.0, bone_budget: int | None = None) -> dict:
     """Build ``tree`` in the scene and write the ``wanted`` files into ``out_dir``.
 
     ``wanted`` = {format flag: bool} (:mod:`core.formats`); ``fresh_scene`` starts from an empty
     scene (batch runs); ``loop_s`` > 0 cuts the motion to a seamless loop of about that many
-    seconds first (:func:`core.loop.loop_tree`); returns {format flag: path}.
+    seconds first (:func:`core.loop.loop_tree`); ``bone_budget`` builds a game rig of at most that
+    many bones (:mod:`core.asset.budget`); returns {format flag: path}.
     """
     check_wanted(wanted)
     for path in wanted_files(out_dir, wanted):
@@ -51,7 +52,9 @@ def write_outputs(tree: Tree3D, out_dir: str, wanted: dict, overwrite: bool = Fa
     if fresh_scene:
         bpy.ops.wm.read_factory_settings(use_empty=True)
     context = bpy.context
-    built = build_tree(context, tree, tree.name, replace=True, leaf_image=leaf_image)
+    built = build_tree(context, tree, tree.name, replace=True, leaf_image=leaf_image, bone_budget=bone_budget)
+    if built["budget"] is not None:
+        report(f"[bones] {built['budget'].line()}")
     objects = [o for o in (built["armature"], built["mesh"], built["leaves"]) if o is not None]
     written = {}
     for f in FORMATS:                       # the interchange files, in the registry's order
