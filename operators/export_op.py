@@ -118,6 +118,18 @@ def _remove_quietly(path: str) -> None:
         pass
 
 
+def _staged_tree(coll, path: str, name: str, staged: list) -> tuple[list, str]:
+    """The tree's objects and the hidden staging file it is written to first (added to
+    ``staged``); InputError if the tree was deleted meanwhile."""
+    try:
+        objects = trees.tree_objects(coll)
+    except ReferenceError:
+        raise InputError(f"the tree '{name}' was deleted during the export; no file written") from None
+    tmp = _staging_path(path)
+    staged.append((tmp, path))
+    return objects, tmp
+
+
 def _background(items, names: list[str], sizes: list[float], fmt: str, overwrite: bool,
                 staged: list, running: list, total: float, seconds: list):
     """Yield ``(stage, fraction)`` every tick while background Blenders write ``items`` to staging
@@ -125,15 +137,7 @@ def _background(items, names: list[str], sizes: list[float], fmt: str, overwrite
     writing its trees one after another); ``staged`` gets (staging file, path) per tree and
     ``running`` the processes while they run, ``seconds`` each tree's export time as it is written.
     Raises InputError naming the tree that failed."""
-    jobs = []
-    for (coll, path), name in zip(items, names):
-        try:
-            objects = trees.tree_objects(coll)
-        except ReferenceError:
-            raise InputError(f"the tree '{name}' was deleted during the export; no file written") from None
-        tmp = _staging_path(path)
-        staged.append((tmp, path))
-        jobs.append((objects, tmp))
+    jobs = [_staged_tree(coll, path, name, staged) for (coll, path), name in zip(items, names)]
     for part in export_process.split(sizes):
         running.append([export_process.start(fmt, [jobs[i] for i in part], overwrite), part, 0])
     n, finished, so_far = len(items), 0, 0.0
@@ -190,12 +194,7 @@ def export_steps(items, fmt: str, overwrite: bool, made_folder: bool, background
         else:
             for k, ((coll, path), name, size) in enumerate(zip(items, names, sizes)):
                 yield f"exporting '{name}' ({k + 1}/{len(items)})", so_far / total
-                try:
-                    objects = trees.tree_objects(coll)
-                except ReferenceError:
-                    raise InputError(f"the tree '{name}' was deleted during the export; no file written") from None
-                tmp = _staging_path(path)
-                staged.append((tmp, path))
+                objects, tmp = _staged_tree(coll, path, name, staged)
                 t = time.perf_counter()
                 try:
                     writer(tmp, objects, overwrite=overwrite, context=bpy.context)   # (USD: its textures/ too)
