@@ -145,12 +145,13 @@ def choose_bones(rig: Rig, reach: np.ndarray, n: int) -> np.ndarray:
 
 
 def groups(rig: Rig, keep: np.ndarray) -> np.ndarray:
-    """``(B + S,)`` each bone's kept bone: itself when kept, else its nearest kept ancestor (bones
-    come after their parents)."""
+    """``(B + S,)`` each bone's kept bone: itself when kept, else its nearest kept ancestor (root
+    to tips by depth: a reconstruction's bones need not come after their parents)."""
     g = np.arange(len(rig.names))
-    for b in range(len(g)):                      # a per-bone walk over ≤ 2,000 ints, once per export
-        if not keep[b]:
-            g[b] = g[rig.parent[b]] if rig.parent[b] >= 0 else b
+    depth = bones.bone_depths(rig.parent)
+    for d in range(1, int(depth.max()) + 1 if len(depth) else 0):
+        at = np.flatnonzero((depth == d) & ~keep)
+        g[at] = g[rig.parent[at]]
     return g
 
 
