@@ -377,6 +377,16 @@ class SteadyFlutter:
         return float(self.frames[-1])
 
 
+def steady_coefficients(flutter: np.ndarray, fps: float, hz: float) -> np.ndarray:
+    """``(2, S)`` the least-squares ``a sin(ωt) + b cos(ωt)`` (ω = 2π·``hz``, ``t = index / fps``)
+    of each cluster's ``flutter (F, S)`` radians."""
+    t = np.arange(len(flutter)) / float(fps)
+    w = 2 * np.pi * float(hz)
+    X = np.stack([np.sin(w * t), np.cos(w * t)], axis=1)              # (F, 2)
+    coef, *_ = np.linalg.lstsq(X, np.asarray(flutter, np.float64), rcond=None)
+    return coef
+
+
 def steady_flutter(flutter: np.ndarray, fps: float, hz: float, frames: np.ndarray | None = None) -> SteadyFlutter | None:
     """The steady sine that best fits each cluster's ``flutter (F, S)`` radians at ``hz`` (the
     flutter's ω / 2π; made at ``index / fps`` seconds, :func:`.detail.leaf_clusters.flutter_angles`),
@@ -391,10 +401,8 @@ def steady_flutter(flutter: np.ndarray, fps: float, hz: float, frames: np.ndarra
     period = float(fps) / float(hz)                                   # scene frames
     if F < 2 * period + 1:
         return None
-    t = np.arange(F) / float(fps)
     w = 2 * np.pi * float(hz)
-    X = np.stack([np.sin(w * t), np.cos(w * t)], axis=1)              # (F, 2)
-    coef, *_ = np.linalg.lstsq(X, flutter, rcond=None)                 # (2, S)
+    coef = steady_coefficients(flutter, fps, hz)                      # (2, S)
     k = np.arange(int(np.floor(period)) + 1, dtype=np.float64)
     if period - k[-1] > 1e-6:
         k = np.append(k, period)

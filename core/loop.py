@@ -36,7 +36,7 @@ import numpy as np
 
 from . import bones
 from .errors import InputError
-from .keys import dominant_hz
+from .keys import dominant_hz, steady_coefficients
 from .meta import TreeMeta
 from .params import param
 from .rotations import make_continuous, quat_conj, quat_exp, quat_log, quat_mul
@@ -127,10 +127,17 @@ def loop_rotations(q: np.ndarray, L: int, D: int, start: int | None = None) -> t
     return np.roll(out, -r, axis=0), a + r, float(np.sqrt(cost[a]))
 
 
-def _steps(q: np.ndarray) -> np.ndarray:
-    """``(L, B, 3)`` rotation vectors of each step ``t → t + 1`` of the cyclic ``q (L, B, 4)``."""
-    cyc = np.concatenate([q, q[:1]])
-    return quat_log(quat_mul(quat_conj(cyc[:-1]), cyc[1:]))
+def _steps(q: np.ndarray, cyclic: bool = True) -> np.ndarray:
+    """Rotation vectors ``(L, B, 3)`` of each step ``t → t + 1`` of the cyclic ``q (L, B, 4)``
+    (``L − 1`` of them when not ``cyclic``)."""
+    if cyclic:
+        q = np.concatenate([q, q[:1]])
+    return quat_log(quat_mul(quat_conj(q[:-1]), q[1:]))
+
+
+def _rms_bones(v: np.ndarray) -> np.ndarray:
+    """``(T,)`` the RMS over bones of the rotation vectors ``v (T, B, 3)`` (radians)."""
+    return np.sqrt(np.mean(np.sum(v ** 2, axis=-1), axis=1))
 
 
 def calm_seam(q: np.ndarray, step: float) -> int:
@@ -139,8 +146,8 @@ def calm_seam(q: np.ndarray, step: float) -> int:
     bounds, :func:`seam_jumps`). Any frame of a smooth loop would do; the calmest keeps the
     engine's wrap (where some players blend or re-sync) where the tree moves least."""
     st = _steps(q)                                                    # st[t]: t → t + 1
-    speed = np.sqrt(np.mean(np.sum(st ** 2, axis=-1), axis=1))        # into frame t + 1
-    change = np.sqrt(np.mean(np.sum((st - np.roll(st, 1, axis=0)) ** 2, axis=-1), axis=1))
+    speed = _rms_bones(st)                                            # into frame t + 1
+    change = _rms_bones(st - np.roll(st, 1, axis=0))
     score = np.maximum(speed / max(step, 1e-12), change / max(2 * step, 1e-12))
     return int((np.argmin(score) + 1) % len(q))
 
@@ -151,27 +158,16 @@ def seam_jumps(q: np.ndarray) -> tuple[float, float, float]:
     the velocity jump, radians per frame), and the median over the sequence's other frames of
     the RMS step — all radians."""
     steps = _steps(np.asarray(q, np.float64))                           # (L, B, 3): step t → t + 1
-    rms = np.sqrt(np.mean(np.sum(steps ** 2, axis=-1), axis=1))         # (L,)
+    rms = _rms_bones(steps)                                             # (L,)
     seam = float(rms[-1])
-    vel = float(np.sqrt(np.mean(np.sum((steps[-1] - steps[-2]) ** 2, axis=-1))))
+    vel = float(_rms_bones((steps[-1] - steps[-2])[None])[0])
     return seam, vel, float(np.median(rms[:-1]))
 
 
 def clip_step(q: np.ndarray) -> float:
     """The clip's median per-frame step: median over frames of the RMS over bones of the rotation
     from one frame to the next, radians."""
-    q = np.asarray(q, np.float64)
-    steps = quat_log(quat_mul(quat_conj(q[:-1]), q[1:]))
-    return float(np.median(np.sqrt(np.mean(np.sum(steps ** 2, axis=-1), axis=1))))
-
-
-def _steady_coefficients(flutter: np.ndarray, fps: float, hz: float) -> np.ndarray:
-    """``(2, S)`` least-squares ``a sin(ωt) + b cos(ωt)`` of ``flutter (F, S)`` at ``hz``."""
-    t = np.arange(len(flutter)) / float(fps)
-    w = 2 * np.pi * hz
-    X = np.stack([np.sin(w * t), np.cos(w * t)], axis=1)
-    coef, *_ = np.linalg.lstsq(X, np.asarray(flutter, np.float64), rcond=None)
-    return coef
+    return float(np.median(_rms_bones(_steps(np.asarray(q, np.float64), cyclic=False))))
 
 
 def loop_tree(tree: Tree3D, seconds: float) -> tuple[Tree3D, LoopReport]:
@@ -211,7 +207,7 @@ def loop_tree(tree: Tree3D, seconds: float) -> tuple[Tree3D, LoopReport]:
         flap_hz = loop_frequency(leaves.leaf_hz, L, fps)
         t = np.arange(L + 1) / fps
         if flutter_hz > 0:
-            coef = _steady_coefficients(leaves.flutter, fps, hz)
+            coef = steady_coefficients(leaves.flutter, fps, hz)
             w = 2 * np.pi * flutter_hz
             flutter = np.stack([np.sin(w * t), np.cos(w * t)], axis=1) @ coef
         else:

@@ -20,7 +20,8 @@ reduced bones are not connected (a re-fitted bone's head may move off its parent
 carries a location as well as a rotation: in Blender's pose-bone terms (rest matrix ``M_k``, parent
 ``p``) ``B_k(t) = M_k⁻¹ W_p(t)⁻¹ W_k(t) M_k``. Every vertex keeps one influence (weight 1).
 
-:func:`budget_error` measures the result against the full rig on every sampled vertex and frame.
+:func:`budget_rig` also measures the result against the full rig on every sampled vertex and
+frame (its :class:`BudgetReport`).
 """
 from __future__ import annotations
 
@@ -29,7 +30,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .. import bones
-from ..rotations import make_continuous, matrix_to_quat, quat_conj, quat_log, quat_mul, quat_rotate, quat_to_matrix, swing
+from ..keys import flutter_quaternions
+from ..rotations import make_continuous, matrix_to_quat, quat_conj, quat_log, quat_mul, quat_rotate
 from ..tree3d import Tree3D
 from .meshes import BranchMesh, LeafMesh
 from .rig import BoneKeys, Rig
@@ -54,15 +56,6 @@ class BudgetReport:
                 f"max {100 * self.max:.2f} % of the height")
 
 
-def leaf_rest_frames(head: np.ndarray, tail: np.ndarray) -> np.ndarray:
-    """``(S, 4)`` rest rotations (Blender's roll 0: Y along the bone) of bones ``head → tail``."""
-    d = np.asarray(tail, np.float64) - np.asarray(head, np.float64)
-    d /= np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-12)
-    q = swing(np.array([0.0, 1.0, 0.0]), d)
-    q[d[:, 1] < -1 + 1e-9] = [0.0, 0.0, 0.0, 1.0]
-    return q
-
-
 def world_motion(tree: Tree3D, rig: Rig) -> tuple[np.ndarray, np.ndarray]:
     """What the full rig plays: every bone's world rotation from rest ``(F, B + S, 4)`` and head
     ``(F, B + S, 3)`` metres (a point ``p`` fixed to bone ``b`` is at ``head_b + q_b (p − head_b⁰)``).
@@ -76,9 +69,8 @@ def world_motion(tree: Tree3D, rig: Rig) -> tuple[np.ndarray, np.ndarray]:
     lv = tree.leaves
     assert lv is not None
     pb = rig.parent[B:]
-    rest_q = leaf_rest_frames(rig.head[B:], rig.tail[B:])                  # (S, 4)
-    half = 0.5 * np.asarray(lv.flutter, np.float64)
-    flutter = np.stack([np.cos(half), 0 * half, np.sin(half), 0 * half], axis=-1)   # about local Y
+    rest_q = bones.roll_zero_quats(rig.head[B:], rig.tail[B:])             # (S, 4)
+    flutter = flutter_quaternions(np.asarray(lv.flutter, np.float64))     # about the bone's own Y
     local = quat_mul(rest_q[None], quat_mul(flutter, quat_conj(rest_q)[None]))      # in armature axes
     q_leaf = quat_mul(qw[:, pb], local)
     offset = rig.head[B:].astype(np.float64) - rig.head[pb].astype(np.float64)
@@ -86,8 +78,8 @@ def world_motion(tree: Tree3D, rig: Rig) -> tuple[np.ndarray, np.ndarray]:
     return np.concatenate([qw, q_leaf], axis=1), np.concatenate([heads, h_leaf], axis=1)
 
 
-def _vertex_sample(branches: BranchMesh | None, leaves: LeafMesh | None, n_bones: int,
-                   rig: Rig, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+def _vertex_sample(branches: BranchMesh | None, leaves: LeafMesh | None, rig: Rig,
+                   seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
     """Up to :data:`SAMPLES` rest vertices per bone (branch mesh, then leaf cards; a bone without
     vertices samples its head and tail): ``(P, 3)`` positions and ``(P,)`` their bones."""
     rng = np.random.default_rng([int(seed), 0xB0E5])
@@ -99,7 +91,7 @@ def _vertex_sample(branches: BranchMesh | None, leaves: LeafMesh | None, n_bones
         co.append(leaves.co)
         bone.append(leaves.bone)
     co.append(np.concatenate([rig.head, rig.tail]))                     # every bone has two points
-    bone.append(np.concatenate([np.arange(n_bones), np.arange(n_bones)]))
+    bone.append(np.tile(np.arange(len(rig.names)), 2))
     P = np.concatenate(co).astype(np.float64)
     b = np.concatenate(bone).astype(np.int64)
     order = np.lexsort((rng.random(len(b)), b))                          # each bone's vertices, shuffled
@@ -178,7 +170,7 @@ def budget_rig(tree: Tree3D, rig: Rig, branches: BranchMesh | None, leaves: Leaf
     if n >= total:
         return rig, branches, leaves, BudgetReport(total, total, 0.0, 0.0)
     qw, heads = world_motion(tree, rig)
-    P, pb = _vertex_sample(branches, leaves, total, rig, int((tree.meta.get("mesh") or {}).get("seed", 0)))
+    P, pb = _vertex_sample(branches, leaves, rig, int((tree.meta.get("mesh") or {}).get("seed", 0)))
     head0 = rig.head.astype(np.float64)
     X = heads[:, pb] + quat_rotate(qw[:, pb], P[None] - head0[pb][None])      # (F, P, 3) the full rig
     keep = choose_bones(rig, subtree_reach(rig, P, pb), n)
@@ -205,15 +197,10 @@ def budget_rig(tree: Tree3D, rig: Rig, branches: BranchMesh | None, leaves: Leaf
 
 
 def _rest_matrices(rig: Rig, kept: np.ndarray) -> np.ndarray:
-    """``(K, 4, 4)`` the kept bones' rest matrices in armature space (Blender's ``matrix_local``)."""
-    B = rig.n_branch
+    """``(K, 4, 4)`` the kept bones' rest matrices in armature space (Blender's ``matrix_local``;
+    only branch bones are ever kept)."""
     M = np.tile(np.eye(4), (len(kept), 1, 1))
-    for j, k in enumerate(kept):
-        if k < B:
-            M[j, :3, :3] = rig.rest[k]
-    leafy = kept >= B
-    if leafy.any():
-        M[leafy, :3, :3] = quat_to_matrix(leaf_rest_frames(rig.head[kept[leafy]], rig.tail[kept[leafy]]))
+    M[:, :3, :3] = rig.rest[kept]
     M[:, :3, 3] = rig.head[kept]
     return M
 
@@ -224,7 +211,8 @@ def _reduced_rig(rig: Rig, kept: np.ndarray, g: np.ndarray, R: np.ndarray, T: np
     F, K = R.shape[:2]
     index = np.full(len(rig.names), -1)
     index[kept] = np.arange(K)
-    parent = np.array([index[g[rig.parent[k]]] if rig.parent[k] >= 0 else -1 for k in kept], np.int32)
+    up = rig.parent[kept]
+    parent = np.where(up >= 0, index[g[np.maximum(up, 0)]], -1).astype(np.int32)
     W = np.tile(np.eye(4), (F, K, 1, 1))
     W[..., :3, :3], W[..., :3, 3] = R, T
     M = _rest_matrices(rig, kept)

@@ -9,7 +9,6 @@ import bpy
 import numpy as np
 
 from ...core.asset.look import bark_solid as bark_colour
-from ...core.asset.look import leaf_colour, leaf_tint  # noqa: F401  (re-exported: the look lives in the core)
 from ...core.detail.albedo import srgb_to_linear
 from ...core.detail.bark_texture import BARK_LOOK, BARK_RAMP, bark_ramp  # noqa: F401  (BARK_RAMP: re-exported)
 from ...core.errors import InputError
@@ -146,7 +145,7 @@ def leaf_material(name: str, image_path: str | None = None, tint=(0.3, 0.5, 0.2)
                   colour=None) -> bpy.types.Material:
     """Leaf material: the leaf image (``image_path`` or procedural, packed; alpha cut-out)
     multiplied by the mesh's ``Col`` colour attribute (the video's colour), Principled BSDF,
-    two-sided; ``tint`` (sRGB, :func:`leaf_tint`) colours the procedural leaf, ``colour`` (sRGB,
+    two-sided; ``tint`` (sRGB, :func:`core.asset.look.leaf_tint`) colours the procedural leaf, ``colour`` (sRGB,
     :func:`leaf_colour`; None: ``tint``) the solid view (Viewport Display colour). The caller
     removes it (and its image, via :func:`material_images`) on failure."""
     mat = bpy.data.materials.new(name)
