@@ -43,7 +43,10 @@ def tree_asset(tree: Tree3D, *, mesh: bool = True, leaves: bool = True, sides: i
     look = tree_look(tree, sides, curliness, bark, leaf_image)
     timings = {}
     t = time.perf_counter()
-    rig = tree_rig(tree, every_key, leaves)
+    # a budget that cuts the rig keys its re-fitted bones on every frame: no reduction to throw away
+    n_bones = tree.n_nodes - 1 + (tree.leaves.count if leaves and tree.leaves is not None else 0)
+    cut = bone_budget is not None and int(bone_budget) < n_bones
+    rig = tree_rig(tree, every_key or cut, leaves)
     timings["rig arrays"] = time.perf_counter() - t
     t = time.perf_counter()
     branches = branch_arrays(tree, rig.rest, look.mesh) if mesh else None
