@@ -23,6 +23,7 @@ from types import SimpleNamespace
 
 from . import __version__, api
 from .core import pipeline
+from .core.asset.game import GameSettings
 from .core.detail.branch_mesh import MeshParams
 from .core.detail.leaf_clusters import LeafParams
 from .core.detail.twigs import TwigParams
@@ -126,6 +127,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="a game rig of at most N bones in the Blender outputs (e.g. 16, 32, 64, 128): the trunk "
                         "and the bones that move the tree most kept, the rest (leaf clusters too) joined rigidly to "
                         "them, the motion re-fitted; the vertex error is printed (default: every bone)")
+    p.add_argument("--lods", type=int, default=_default(GameSettings, "lods"), metavar="K",
+                   help=f"K levels of detail in the Blender outputs, {_range(GameSettings, 'lods')}: meshes "
+                        "<tree>_LOD0.. (about 100 %%, 40 %%, 15 %% of LOD0's triangles, then x0.4), the same rig and "
+                        "motion, under a <tree>_LODGroup empty (an FBX LOD group; Unity groups by the suffix) "
+                        "(default %(default)s: the film meshes)")
     for f in FORMATS:                      # the output formats' registry: --fbx --usd --gltf --blend --preview
         p.add_argument(f"--{f.flag}", action="store_true", help=f.help.format(file=f.file))
     p.add_argument("--no-video", action="store_true", help="skip overlay.mp4 (overlay.png is still written)")
@@ -212,12 +218,22 @@ def _wanted(args) -> tuple[dict, list[str]]:
     return wanted, [f.file for f in FORMATS if wanted[f.flag]]
 
 
+def _game(args) -> GameSettings:
+    """The game export's settings of the command line."""
+    return GameSettings(bones=args.bones or 0, lods=args.lods)
+
+
 def _check_loop(args) -> None:
     """--loop: a positive number of seconds, and --bones: at least 1; both for the Blender outputs."""
     if args.bones is not None and args.bones < 1:
         raise InputError(f"--bones {args.bones}: give at least 1 (e.g. 64), or drop it for every bone")
     if args.bones is not None and not any(_wanted(args)[0].values()):
         raise InputError("--bones cuts the rig of the Blender outputs; add one of "
+                         f"{', '.join('--' + f.flag for f in FORMATS)}")
+    if not spec(GameSettings, "lods").ok(args.lods):
+        raise InputError(f"--lods {args.lods}: give a number of levels, {spec(GameSettings, 'lods').describe()}, e.g. 3")
+    if args.lods > 1 and not any(_wanted(args)[0].values()):
+        raise InputError("--lods builds the meshes of the Blender outputs; add one of "
                          f"{', '.join('--' + f.flag for f in FORMATS)}")
     if not spec(LoopSettings, "seconds").ok(args.loop):
         raise InputError(f"--loop {args.loop}: give a number of seconds, {spec(LoopSettings, 'seconds').describe()}, e.g. 10")
@@ -271,7 +287,7 @@ def _run_generation(args, plan, outputs, wanted) -> int:
                                  "seed": int(tree.meta.get("seed", 0))}
             return outputs.write_outputs(tree, folder, wanted, overwrite=args.force, fresh_scene=True,
                                          report=log, leaf_image=args.leaf_image, loop_s=args.loop,
-                                         bone_budget=args.bones)
+                                         game=_game(args))
     t0 = time.monotonic()
     entries = gb.generate_trees(plan.model, plan.species_label, plan.envelope, plan.envelope_label, plan.req,
                                 args.out, write, _progress_printer(args.quiet), log)
@@ -376,7 +392,7 @@ def _write_tree(args, res, tree, out: str, outputs, wanted, exports: bool, cb) -
                            res.foreground.mask if res.foreground is not None else None)
     if outputs is not None and exports:              # with --generate the exports are per generated tree
         outputs.write_outputs(tree, out, wanted, overwrite=args.force, leaf_image=args.leaf_image,
-                              report=lambda m: sys.stderr.write(m + "\n"), loop_s=args.loop, bone_budget=args.bones)
+                              report=lambda m: sys.stderr.write(m + "\n"), loop_s=args.loop, game=_game(args))
     conf = res.skeleton.confidence
     sure = "" if conf is None else f", {node_motion.confidence_summary(conf)}"
     sys.stderr.write(f"done: {res.skeleton.n_nodes} nodes, {res.tracks.n_tracks} tracks, "

@@ -8,10 +8,13 @@ builders (``operators/scene/``) only copy these into bpy; the game-engine export
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+
+import numpy as np
 
 from ..tree3d import Tree3D
 from .budget import BudgetReport, budget_rig
+from .lod import Lod, tree_lods
 from .look import Look, tree_look
 from .meshes import BranchMesh, LeafMesh, branch_arrays, leaf_arrays
 from .rig import Rig, tree_rig
@@ -21,8 +24,9 @@ from .rig import Rig, tree_rig
 class TreeAsset:
     """``rig``, ``branches`` (None: no branch mesh asked for), ``leaves`` (None: no leaves),
     ``look``; ``timings`` seconds of each part (``rig arrays``: bones, rotations and key
-    reduction; ``mesh arrays``; ``leaf arrays``; ``bone budget``); ``budget`` the bone budget's
-    report (None: every bone kept)."""
+    reduction; ``mesh arrays``; ``leaf arrays``; ``lods``; ``bone budget``); ``budget`` the bone
+    budget's report (None: every bone kept); ``lods`` the levels of detail (:mod:`.lod`; empty
+    unless asked for; level 0 is ``branches`` and ``leaves``)."""
 
     rig: Rig
     branches: BranchMesh | None
@@ -30,16 +34,18 @@ class TreeAsset:
     look: Look
     timings: dict = field(default_factory=dict)
     budget: BudgetReport | None = None
+    lods: list[Lod] = field(default_factory=list)
 
 
 def tree_asset(tree: Tree3D, *, mesh: bool = True, leaves: bool = True, sides: int = 8,
                curliness: float | None = None, bark: str | None = None, leaf_image: str | None = None,
-               every_key: bool = False, bone_budget: int | None = None) -> TreeAsset:
+               every_key: bool = False, bone_budget: int | None = None, lods: int = 1) -> TreeAsset:
     """Everything a writer copies of ``tree``: keys reduced within :data:`core.keys.KEY_TOLERANCE`
     (every frame with ``every_key``), the branch mesh with ``mesh``, the leaf bones and cards with
     ``leaves`` (when the tree has clusters), the look (``sides``, ``curliness``, ``bark`` and
     ``leaf_image`` win over what the tree records, :func:`.look.tree_look`); ``bone_budget``: the
-    rig cut to at most that many bones, its motion re-fitted (:func:`.budget.budget_rig`)."""
+    rig cut to at most that many bones, its motion re-fitted (:func:`.budget.budget_rig`); ``lods``
+    ≥ 2: that many levels of detail (:func:`.lod.tree_lods`) on the same rig."""
     look = tree_look(tree, sides, curliness, bark, leaf_image)
     timings = {}
     t = time.perf_counter()
@@ -55,9 +61,22 @@ def tree_asset(tree: Tree3D, *, mesh: bool = True, leaves: bool = True, sides: i
     leafy = rig.leaf_keys is not None
     leaf_mesh = leaf_arrays(tree, look, rig.n_branch) if leafy else None
     timings["leaf arrays"] = time.perf_counter() - t
+    levels: list[Lod] = []
+    if lods > 1:
+        t = time.perf_counter()
+        levels = tree_lods(tree, rig.rest, look, branches, leaf_mesh, int(lods))
+        timings["lods"] = time.perf_counter() - t
     report = None
     if bone_budget is not None:
         t = time.perf_counter()
         rig, branches, leaf_mesh, report = budget_rig(tree, rig, branches, leaf_mesh, int(bone_budget))
+        if levels and report.bone_of is not None:       # every level's vertices onto the kept bones
+            bone_of = report.bone_of
+            levels = [replace(lv, branches=None if lv.branches is None else replace(
+                lv.branches, bone=bone_of[lv.branches.bone].astype(np.int32)),
+                leaves=None if lv.leaves is None else replace(lv.leaves, bone=bone_of[lv.leaves.bone].astype(np.int32)))
+                for lv in levels]
         timings["bone budget"] = time.perf_counter() - t
-    return TreeAsset(rig, branches, leaf_mesh, look, timings, report)
+    if levels:
+        levels[0] = replace(levels[0], branches=branches, leaves=leaf_mesh)
+    return TreeAsset(rig, branches, leaf_mesh, look, timings, report, levels)

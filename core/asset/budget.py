@@ -44,12 +44,15 @@ SAMPLES = 24
 @dataclass
 class BudgetReport:
     """``bones`` kept of ``of`` (branch and leaf bones before); ``rms``, ``max`` the vertex error
-    against the full rig over every sampled vertex and frame, shares of the tree's height."""
+    against the full rig over every sampled vertex and frame, shares of the tree's height;
+    ``bone_of (of,)`` each bone's kept bone (an index into the cut rig's bones; None: every bone
+    kept), which carries the vertices it carried."""
 
     bones: int
     of: int
     rms: float
     max: float
+    bone_of: np.ndarray | None = None
 
     def line(self) -> str:
         return (f"{self.bones} bones of {self.of}: vertex error RMS {100 * self.rms:.2f} %, "
@@ -188,9 +191,9 @@ def budget_rig(tree: Tree3D, rig: Rig, branches: BranchMesh | None, leaves: Leaf
     fitted = np.einsum("fnij,nj->fni", R[:, index[owner]], P) + T[:, index[owner]]
     err = np.linalg.norm(fitted - X, axis=-1)
     H = max(float(np.ptp(tree.nodes3d[0][:, 2])), 1e-9)
-    report = BudgetReport(len(kept), total, float(np.sqrt(np.mean(err ** 2)) / H), float(err.max() / H))
-    small = _reduced_rig(rig, kept, g, R, T)
     remap = index[g]
+    report = BudgetReport(len(kept), total, float(np.sqrt(np.mean(err ** 2)) / H), float(err.max() / H), remap)
+    small = _reduced_rig(rig, kept, g, R, T)
     new_branches = None if branches is None else replace(branches, bone=remap[branches.bone].astype(np.int32))
     new_leaves = None if leaves is None else replace(leaves, bone=remap[leaves.bone].astype(np.int32))
     return small, new_branches, new_leaves, report

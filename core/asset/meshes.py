@@ -59,10 +59,10 @@ class LeafMesh:
         return len(self.co) // 4
 
 
-def branch_arrays(tree: Tree3D, rest: np.ndarray, params: bm.MeshParams) -> BranchMesh:
+def branch_arrays(tree: Tree3D, rest: np.ndarray, params: bm.MeshParams, widen: float = 1.0) -> BranchMesh:
     """The :class:`BranchMesh` of ``tree`` at rest, its bones' rest rotations ``rest (B, 3, 3)``,
-    radii floored at 10⁻⁴ of the tree's size (no zero-width tube)."""
-    r_head, r_tail = bm.branch_radii(tree.parents, tree.radius)
+    radii × ``widen`` floored at 10⁻⁴ of the tree's size (no zero-width tube)."""
+    r_head, r_tail = (widen * r for r in bm.branch_radii(tree.parents, tree.radius))
     floor = 1e-4 * max(float(np.ptp(tree.nodes3d[0], axis=0).max()), 1e-3)
     g = bm.tube_arrays(tree.nodes3d[0], tree.parents, rest, np.maximum(r_head, floor),
                        np.maximum(r_tail, floor), params.sides, curliness=params.curliness, bark=params.bark,

@@ -20,6 +20,7 @@ from ...core.errors import InputError
 from ...core.tree3d import Tree3D, last_key_frame
 from . import armature, branch_mesh, objects, timing, trees
 from . import leaves as leaf_build  # build_tree has the parameters "leaves" and "materials"
+from . import lods as lod_build
 from . import materials as mats
 from .objects import Created, deselect_all
 
@@ -31,7 +32,8 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
                mesh: bool = True, sides: int = 8, leaves: bool = True,
                leaf_image: str | None = None, curliness: float | None = None,
                bark: str | None = None, materials: dict | None = None, update_frame: bool = True,
-               keep_view: bool = False, every_key: bool = False, bone_budget: int | None = None) -> dict:
+               keep_view: bool = False, every_key: bool = False, bone_budget: int | None = None,
+               lods: int = 1) -> dict:
     """Create the animated tree in a new collection ``collection_name`` under the scene collection
     (unselected, its rig active, at the scene's first frame; with ``keep_view`` the selection, the
     active object and the current frame stay as they were: a tree generated into a scene).
@@ -63,7 +65,9 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
 
     The new objects land unselected, the rig active. ``bone_budget``: a game rig of at most that
     many bones, the motion re-fitted (:mod:`core.asset.budget`; no leaf bones, each kept bone keyed
-    on every frame in rotation and location); its report is returned as ``"budget"``.
+    on every frame in rotation and location); its report is returned as ``"budget"``. ``lods`` ≥ 2:
+    instead of the branch and leaf meshes, one mesh per level of detail ``"<name>_LOD0"``… (branches
+    and leaves joined, :mod:`.lods`), returned as ``"lods"``; ``"mesh"`` is LOD0 then.
 
     Returns ``{"collection", "armature", "mesh" (or None), "action", "keys" (the kept keys,
     :class:`core.keys.TreeKeys`, or None with ``every_key``), "material" (or None), "leaves" (or
@@ -81,7 +85,7 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
                          "or replace it (replace=True)")
     # everything Blender copies, computed in the core (rig, keys, meshes, look)
     asset = tree_asset(tree, mesh=mesh, leaves=leaves, sides=sides, curliness=curliness, bark=bark,
-                       leaf_image=leaf_image, every_key=every_key, bone_budget=bone_budget)
+                       leaf_image=leaf_image, every_key=every_key, bone_budget=bone_budget, lods=lods)
     timings = dict(asset.timings)
     # a loop's action is named so engines loop it (Godot loops an animation whose name ends in "loop")
     action_name = f"{collection_name}_loop" if tree.meta.get("loop") else f"{collection_name} Sway"
@@ -116,30 +120,47 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
         created.on_failure(lambda: timing.restore_scene_timing(scene, *saved))
         timing.fit_scene_timing(scene, tree.fps, last_key_frame(tree), first=not trees.scene_trees(scene, exclude=coll))
 
-        mesh_obj = material = None
+        mesh_obj = material = leaf_obj = leaf_mat = None
+        lod_objs: list = []
+        t = time.perf_counter()
         if asset.branches is not None:
-            t = time.perf_counter()
             material = (materials or {}).get("bark")
             if material is None:
                 material = created.add(bpy.data.materials, mats.bark_material(
                     names["material"], look.mesh.bark, look.bark_colour))
-            mesh_obj = branch_mesh.build_mesh(asset.branches, rig_data.names, rig, coll, names["mesh"], material, created)
-            timings["mesh"] = time.perf_counter() - t
-        leaf_obj = leaf_mat = None
         if asset.leaves is not None:
-            t = time.perf_counter()
             leaf_mat = (materials or {}).get("leaf")
             if leaf_mat is None:
                 leaf_mat = created.add(bpy.data.materials, mats.leaf_material(
                     names["leaf_material"], leaf_image, look.leaf_tint, look.leaf_colour))
                 for img in mats.material_images(leaf_mat):
                     created.add(bpy.data.images, img)
-            leaf_obj = leaf_build.build_leaf_mesh(asset.leaves, rig, coll, names["leaves"], rig_data.names,
-                                                  leaf_mat, created)
-            timings["leaves"] = time.perf_counter() - t
+        timings["materials"] = time.perf_counter() - t
+        if asset.lods:                          # game levels of detail: one joined mesh per level
+            t = time.perf_counter()
+            lod_objs = [lod_build.build_lod(lv, k, rig_data.names, rig, coll, collection_name, material, leaf_mat,
+                                            created) for k, lv in enumerate(asset.lods)]
+            mesh_obj = lod_objs[0]
+            lod_build.lod_group(rig, coll, collection_name, lod_objs, created)
+            timings["lods"] = time.perf_counter() - t
+        else:
+            if asset.branches is not None:
+                t = time.perf_counter()
+                mesh_obj = branch_mesh.build_mesh(asset.branches, rig_data.names, rig, coll, names["mesh"],
+                                                  material, created)
+                timings["mesh"] = time.perf_counter() - t
+            if asset.leaves is not None:
+                t = time.perf_counter()
+                leaf_obj = leaf_build.build_leaf_mesh(asset.leaves, rig, coll, names["leaves"], rig_data.names,
+                                                      leaf_mat, created)
+                timings["leaves"] = time.perf_counter() - t
 
         if old is not None:
             objects.remove_collection(old)
+            for k, ob in enumerate(lod_objs):
+                for id_ in (ob, ob.data):
+                    if id_.name != lod_build.lod_name(collection_name, k):
+                        id_.name = lod_build.lod_name(collection_name, k)
             for id_, name in ((coll, collection_name), (rig, names["rig"]), (rig.data, names["rig"]),
                               (action, names["action"]), (mesh_obj, names["mesh"]),
                               (mesh_obj and mesh_obj.data, names["mesh"]), (material, names["material"]),
@@ -166,14 +187,16 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
             context.view_layer.objects.active = rig  # the rig active (its properties show, ready to select)
             if update_frame:
                 scene.frame_set(scene.frame_start)
+        lod_build.hide_lower_levels(context, lod_objs)
     except BaseException:
         created.remove(context)
         raise
     timings["total"] = time.perf_counter() - t_total
     return {"collection": coll, "armature": rig, "mesh": mesh_obj, "action": action, "keys": rig_data.reduced,
-            "budget": asset.budget,
+            "budget": asset.budget, "lods": lod_objs,
             "material": material, "leaves": leaf_obj,
-            "leaf_polygons": tree.leaves.polygons if leaf_obj is not None else 0, "timings": timings}
+            "leaf_polygons": sum(lv.leaves.quads for lv in asset.lods[:1] if lv.leaves is not None) if lod_objs
+            else tree.leaves.polygons if leaf_obj is not None else 0, "timings": timings}
 
 
 # ----------------------------------------------------------------------------- validation

@@ -61,7 +61,7 @@ def export_fbx(path: str | os.PathLike, objects: Iterable[bpy.types.Object], *, 
     an empty first frame). Textures are embedded (``path_mode`` COPY + ``embed_textures``: with AUTO the
     leaf texture was left out and the leaves imported white). The animation stack is named after
     the rig's action (:func:`animation_name`: ``<tree>_loop`` for a loop)."""
-    options = dict(use_selection=True, object_types={"ARMATURE", "MESH"}, add_leaf_bones=False,
+    options = dict(use_selection=True, object_types={"ARMATURE", "MESH", "EMPTY"}, add_leaf_bones=False,
                    bake_anim=True, bake_anim_use_all_bones=True, bake_anim_use_nla_strips=False,
                    bake_anim_use_all_actions=False, bake_anim_force_startend_keying=True,
                    bake_anim_step=1.0, bake_anim_simplify_factor=0.0, use_armature_deform_only=False,

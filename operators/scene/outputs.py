@@ -12,12 +12,13 @@ import tempfile
 import bpy
 import numpy as np
 
+from ...core.asset.game import GameSettings
 from ...core.errors import InputError
 from ...core.fileio import publish, temp_path
 from ...core.formats import FORMATS, by_flag
 from ...core.loop import maybe_loop
 from ...core.tree3d import Tree3D
-from . import export
+from . import export, trees
 from .build import build_tree
 
 
@@ -34,13 +35,13 @@ def check_wanted(wanted: dict) -> None:
 
 def write_outputs(tree: Tree3D, out_dir: str, wanted: dict, overwrite: bool = False,
                   fresh_scene: bool = True, report=print, leaf_image: str | None = None,
-                  loop_s: float = 0.0, bone_budget: int | None = None) -> dict:
+                  loop_s: float = 0.0, game: GameSettings | None = None) -> dict:
     """Build ``tree`` in the scene and write the ``wanted`` files into ``out_dir``.
 
     ``wanted`` = {format flag: bool} (:mod:`core.formats`); ``fresh_scene`` starts from an empty
     scene (batch runs); ``loop_s`` > 0 cuts the motion to a seamless loop of about that many
-    seconds first (:func:`core.loop.loop_tree`); ``bone_budget`` builds a game rig of at most that
-    many bones (:mod:`core.asset.budget`); returns {format flag: path}.
+    seconds first (:func:`core.loop.loop_tree`); ``game`` the game export's bone budget, levels of
+    detail and engine files (:class:`core.asset.game.GameSettings`); returns {format flag: path}.
     """
     check_wanted(wanted)
     for path in wanted_files(out_dir, wanted):
@@ -52,10 +53,14 @@ def write_outputs(tree: Tree3D, out_dir: str, wanted: dict, overwrite: bool = Fa
     if fresh_scene:
         bpy.ops.wm.read_factory_settings(use_empty=True)
     context = bpy.context
-    built = build_tree(context, tree, tree.name, replace=True, leaf_image=leaf_image, bone_budget=bone_budget)
+    game = game or GameSettings()
+    built = build_tree(context, tree, tree.name, replace=True, leaf_image=leaf_image, bone_budget=game.bone_budget,
+                       lods=game.lods)
     if built["budget"] is not None:
         report(f"[bones] {built['budget'].line()}")
-    objects = [o for o in (built["armature"], built["mesh"], built["leaves"]) if o is not None]
+    if built["lods"]:
+        report(f"[lods] {lod_line(built['lods'])}")
+    objects = trees.tree_objects(built["collection"])
     written = {}
     for f in FORMATS:                       # the interchange files, in the registry's order
         if f.interchange and wanted.get(f.flag):
@@ -68,6 +73,18 @@ def write_outputs(tree: Tree3D, out_dir: str, wanted: dict, overwrite: bool = Fa
         written["blend"] = save_blend(os.path.join(out_dir, by_flag("blend").file))
         report(f"[blend] {written['blend']}")
     return written
+
+
+def lod_line(objs) -> str:
+    """``"LOD0 45,940 triangles, LOD1 17,724 (39 %), …"`` of the level objects ``objs``."""
+    tris = []
+    for ob in objs:
+        me = ob.data
+        me.calc_loop_triangles()
+        tris.append(len(me.loop_triangles))
+    parts = [f"{ob.name.rsplit('_', 1)[-1]} {t:,} triangles" + (f" ({100 * t / max(tris[0], 1):.0f} %)" if k else "")
+             for k, (ob, t) in enumerate(zip(objs, tris))]
+    return ", ".join(parts)
 
 
 def save_blend(path: str) -> str:

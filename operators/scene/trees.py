@@ -81,8 +81,10 @@ def selected_trees(context) -> list:
 
 
 def tree_objects(coll) -> list:
-    """The objects of tree ``coll`` an export writes: its armature and meshes (branches, leaves)."""
-    return [ob for ob in coll.all_objects if ob.type in ("ARMATURE", "MESH")]
+    """The objects of tree ``coll`` an export writes: its armature and meshes (branches, leaves, or
+    its levels of detail and their LOD group empty)."""
+    return [ob for ob in coll.all_objects if ob.type in ("ARMATURE", "MESH")
+            or (ob.type == "EMPTY" and ob.get("fbx_type") == "LodGroup")]
 
 
 def tree_size(coll) -> int:
