@@ -58,3 +58,22 @@ def read_json(path: str | os.PathLike, what: str, fix: str):
             return json.load(fh)
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise InputError(f"{what} is not readable JSON ({exc.__class__.__name__}); {fix}") from None
+
+def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
+    """``data`` to ``path`` through a temporary file in the same folder."""
+    path = os.fspath(path)
+    folder = os.path.dirname(os.path.abspath(path))
+    fd, tmp = tempfile.mkstemp(prefix=".tmp-", suffix=os.path.splitext(path)[1], dir=folder)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+        publish(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def atomic_write_json(path: str | os.PathLike, doc) -> None:
+    """``doc`` as indented JSON (UTF-8) to ``path``, atomically."""
+    atomic_write_bytes(path, (json.dumps(doc, indent=1) + "\n").encode())
