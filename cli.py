@@ -132,6 +132,14 @@ def build_parser() -> argparse.ArgumentParser:
                         "<tree>_LOD0.. (about 100 %%, 40 %%, 15 %% of LOD0's triangles, then x0.4), the same rig and "
                         "motion, under a <tree>_LODGroup empty (an FBX LOD group; Unity groups by the suffix) "
                         "(default %(default)s: the film meshes)")
+    p.add_argument("--pivot-painter", action="store_true",
+                   help="write Unreal Pivot Painter 2 textures beside the exports (pivot_pos_index.exr, "
+                        "xaxis_extent.png; each vertex's element in UV channel 1) and pivot_painter.json (the "
+                        "measured motion as wind parameters per level)")
+    p.add_argument("--bone-texture", action="store_true",
+                   help="write the motion as a bone-animation texture beside the exports (bone_anim.exr: a row "
+                        "a frame, each bone's head displacement and rotation; bone_anim.json: layout, bones, "
+                        "bind pose, fps, loop)")
     for f in FORMATS:                      # the output formats' registry: --fbx --usd --gltf --blend --preview
         p.add_argument(f"--{f.flag}", action="store_true", help=f.help.format(file=f.file))
     p.add_argument("--no-video", action="store_true", help="skip overlay.mp4 (overlay.png is still written)")
@@ -220,7 +228,8 @@ def _wanted(args) -> tuple[dict, list[str]]:
 
 def _game(args) -> GameSettings:
     """The game export's settings of the command line."""
-    return GameSettings(bones=args.bones or 0, lods=args.lods)
+    return GameSettings(bones=args.bones or 0, lods=args.lods, pivot_painter=args.pivot_painter,
+                        bone_texture=args.bone_texture)
 
 
 def _check_loop(args) -> None:
@@ -232,9 +241,11 @@ def _check_loop(args) -> None:
                          f"{', '.join('--' + f.flag for f in FORMATS)}")
     if not spec(GameSettings, "lods").ok(args.lods):
         raise InputError(f"--lods {args.lods}: give a number of levels, {spec(GameSettings, 'lods').describe()}, e.g. 3")
-    if args.lods > 1 and not any(_wanted(args)[0].values()):
-        raise InputError("--lods builds the meshes of the Blender outputs; add one of "
-                         f"{', '.join('--' + f.flag for f in FORMATS)}")
+    for on, flag in ((args.lods > 1, "--lods"), (args.pivot_painter, "--pivot-painter"),
+                     (args.bone_texture, "--bone-texture")):
+        if on and not any(_wanted(args)[0].values()):
+            raise InputError(f"{flag} comes with the Blender outputs; add one of "
+                             f"{', '.join('--' + f.flag for f in FORMATS)}")
     if not spec(LoopSettings, "seconds").ok(args.loop):
         raise InputError(f"--loop {args.loop}: give a number of seconds, {spec(LoopSettings, 'seconds').describe()}, e.g. 10")
     if args.loop > 0 and not any(_wanted(args)[0].values()):

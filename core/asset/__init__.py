@@ -17,6 +17,7 @@ from .budget import BudgetReport, budget_rig
 from .lod import Lod, tree_lods
 from .look import Look, tree_look
 from .meshes import BranchMesh, LeafMesh, branch_arrays, leaf_arrays
+from .pivot_painter import PivotPainter, pivot_painter
 from .rig import Rig, tree_rig
 
 
@@ -26,7 +27,8 @@ class TreeAsset:
     ``look``; ``timings`` seconds of each part (``rig arrays``: bones, rotations and key
     reduction; ``mesh arrays``; ``leaf arrays``; ``lods``; ``bone budget``); ``budget`` the bone
     budget's report (None: every bone kept); ``lods`` the levels of detail (:mod:`.lod`; empty
-    unless asked for; level 0 is ``branches`` and ``leaves``)."""
+    unless asked for; level 0 is ``branches`` and ``leaves``); ``pivots`` the rig's Pivot Painter 2
+    elements (:mod:`.pivot_painter`; None unless asked for)."""
 
     rig: Rig
     branches: BranchMesh | None
@@ -35,17 +37,20 @@ class TreeAsset:
     timings: dict = field(default_factory=dict)
     budget: BudgetReport | None = None
     lods: list[Lod] = field(default_factory=list)
+    pivots: PivotPainter | None = None
 
 
 def tree_asset(tree: Tree3D, *, mesh: bool = True, leaves: bool = True, sides: int = 8,
                curliness: float | None = None, bark: str | None = None, leaf_image: str | None = None,
-               every_key: bool = False, bone_budget: int | None = None, lods: int = 1) -> TreeAsset:
+               every_key: bool = False, bone_budget: int | None = None, lods: int = 1,
+               pivots: bool = False) -> TreeAsset:
     """Everything a writer copies of ``tree``: keys reduced within :data:`core.keys.KEY_TOLERANCE`
     (every frame with ``every_key``), the branch mesh with ``mesh``, the leaf bones and cards with
     ``leaves`` (when the tree has clusters), the look (``sides``, ``curliness``, ``bark`` and
     ``leaf_image`` win over what the tree records, :func:`.look.tree_look`); ``bone_budget``: the
     rig cut to at most that many bones, its motion re-fitted (:func:`.budget.budget_rig`); ``lods``
-    ≥ 2: that many levels of detail (:func:`.lod.tree_lods`) on the same rig."""
+    ≥ 2: that many levels of detail (:func:`.lod.tree_lods`) on the same rig; ``pivots``: the rig's
+    Pivot Painter 2 elements (:func:`.pivot_painter.pivot_painter`)."""
     look = tree_look(tree, sides, curliness, bark, leaf_image)
     timings = {}
     t = time.perf_counter()
@@ -79,4 +84,9 @@ def tree_asset(tree: Tree3D, *, mesh: bool = True, leaves: bool = True, sides: i
         timings["bone budget"] = time.perf_counter() - t
     if levels:
         levels[0] = replace(levels[0], branches=branches, leaves=leaf_mesh)
-    return TreeAsset(rig, branches, leaf_mesh, look, timings, report, levels)
+    pp = None
+    if pivots:
+        t = time.perf_counter()
+        pp = pivot_painter(tree, rig)
+        timings["pivot painter"] = time.perf_counter() - t
+    return TreeAsset(rig, branches, leaf_mesh, look, timings, report, levels, pp)

@@ -25,6 +25,12 @@ class GameSettings:
     pivot_painter: bool = False
     bone_texture: bool = False
 
+    def files(self) -> list[str]:
+        """The engine files these settings write beside the exports (names in the output folder)."""
+        from .bone_texture import FILES as BONE_FILES
+        from .pivot_painter import FILES as PP2_FILES
+        return (list(PP2_FILES) if self.pivot_painter else []) + (list(BONE_FILES) if self.bone_texture else [])
+
     @property
     def bone_budget(self) -> int | None:
         """The budget :func:`core.asset.tree_asset` takes (None: every bone)."""

@@ -33,7 +33,7 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
                leaf_image: str | None = None, curliness: float | None = None,
                bark: str | None = None, materials: dict | None = None, update_frame: bool = True,
                keep_view: bool = False, every_key: bool = False, bone_budget: int | None = None,
-               lods: int = 1) -> dict:
+               lods: int = 1, pivots: bool = False) -> dict:
     """Create the animated tree in a new collection ``collection_name`` under the scene collection
     (unselected, its rig active, at the scene's first frame; with ``keep_view`` the selection, the
     active object and the current frame stay as they were: a tree generated into a scene).
@@ -67,7 +67,10 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
     many bones, the motion re-fitted (:mod:`core.asset.budget`; no leaf bones, each kept bone keyed
     on every frame in rotation and location); its report is returned as ``"budget"``. ``lods`` ≥ 2:
     instead of the branch and leaf meshes, one mesh per level of detail ``"<name>_LOD0"``… (branches
-    and leaves joined, :mod:`.lods`), returned as ``"lods"``; ``"mesh"`` is LOD0 then.
+    and leaves joined, :mod:`.lods`), returned as ``"lods"``; ``"mesh"`` is LOD0 then. ``pivots``:
+    every mesh gets a second UV map ``"PivotPainter"``, each vertex at its Pivot Painter 2 element's
+    pixel (:mod:`core.asset.pivot_painter`). The core's :class:`core.asset.TreeAsset` is returned
+    as ``"asset"`` (what the engine files are written from).
 
     Returns ``{"collection", "armature", "mesh" (or None), "action", "keys" (the kept keys,
     :class:`core.keys.TreeKeys`, or None with ``every_key``), "material" (or None), "leaves" (or
@@ -85,7 +88,8 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
                          "or replace it (replace=True)")
     # everything Blender copies, computed in the core (rig, keys, meshes, look)
     asset = tree_asset(tree, mesh=mesh, leaves=leaves, sides=sides, curliness=curliness, bark=bark,
-                       leaf_image=leaf_image, every_key=every_key, bone_budget=bone_budget, lods=lods)
+                       leaf_image=leaf_image, every_key=every_key, bone_budget=bone_budget, lods=lods,
+                       pivots=pivots)
     timings = dict(asset.timings)
     # a loop's action is named so engines loop it (Godot loops an animation whose name ends in "loop")
     action_name = f"{collection_name}_loop" if tree.meta.get("loop") else f"{collection_name} Sway"
@@ -155,6 +159,15 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
                                                       leaf_mat, created)
                 timings["leaves"] = time.perf_counter() - t
 
+        if asset.pivots is not None:            # PP2: each vertex's element in UV channel 1
+            pp = asset.pivots
+            meshes = [(ob, np.concatenate([m.bone for m in (lv.branches, lv.leaves) if m is not None]))
+                      for ob, lv in zip(lod_objs, asset.lods)]
+            meshes += [(ob, m.bone) for ob, m in ((mesh_obj, asset.branches), (leaf_obj, asset.leaves))
+                       if ob is not None and not lod_objs and m is not None]
+            for ob, bone in meshes:
+                objects.add_vertex_uv(ob, "PivotPainter", pp.uv(bone))
+
         if old is not None:
             objects.remove_collection(old)
             for k, ob in enumerate(lod_objs):
@@ -193,7 +206,7 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
         raise
     timings["total"] = time.perf_counter() - t_total
     return {"collection": coll, "armature": rig, "mesh": mesh_obj, "action": action, "keys": rig_data.reduced,
-            "budget": asset.budget, "lods": lod_objs,
+            "budget": asset.budget, "lods": lod_objs, "asset": asset,
             "material": material, "leaves": leaf_obj,
             "leaf_polygons": sum(lv.leaves.quads for lv in asset.lods[:1] if lv.leaves is not None) if lod_objs
             else tree.leaves.polygons if leaf_obj is not None else 0, "timings": timings}

@@ -121,6 +121,17 @@ def unique_collection_name(base: str) -> str:
     return name
 
 
+def add_vertex_uv(ob, name: str, uv: np.ndarray) -> None:
+    """A UV map ``name`` on ``ob``'s mesh holding ``uv (V, 2)`` per vertex (every loop of a vertex
+    the same), appended after the existing ones (the second map is glTF's TEXCOORD_1, FBX's UV
+    set 1)."""
+    me = ob.data
+    lv = np.empty(len(me.loops), np.int32)
+    me.loops.foreach_get("vertex_index", lv)
+    layer = me.uv_layers.new(name=name, do_init=False)
+    layer.data.foreach_set("uv", np.asarray(uv, np.float32)[lv].ravel())
+
+
 def weight_by_bone(ob, bone: np.ndarray, names: list[str]) -> None:
     """A vertex group for each bone of ``names`` that carries vertices (``bone (V,)`` indices into
     ``names``) holding them with weight 1 (vertex weights have no foreach_set: one call per group)."""

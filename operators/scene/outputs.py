@@ -12,7 +12,9 @@ import tempfile
 import bpy
 import numpy as np
 
+from ...core.asset.bone_texture import bone_texture, write_bone_texture
 from ...core.asset.game import GameSettings
+from ...core.asset.pivot_painter import write_pivot_painter
 from ...core.errors import InputError
 from ...core.fileio import publish, temp_path
 from ...core.formats import FORMATS, by_flag
@@ -44,7 +46,8 @@ def write_outputs(tree: Tree3D, out_dir: str, wanted: dict, overwrite: bool = Fa
     detail and engine files (:class:`core.asset.game.GameSettings`); returns {format flag: path}.
     """
     check_wanted(wanted)
-    for path in wanted_files(out_dir, wanted):
+    game = game or GameSettings()
+    for path in wanted_files(out_dir, wanted) + [os.path.join(out_dir, f) for f in game.files()]:
         if os.path.exists(path) and not overwrite:
             raise InputError(f"{path} exists; pass --force to overwrite or choose another --out")
     tree, note = maybe_loop(tree, loop_s)
@@ -53,9 +56,8 @@ def write_outputs(tree: Tree3D, out_dir: str, wanted: dict, overwrite: bool = Fa
     if fresh_scene:
         bpy.ops.wm.read_factory_settings(use_empty=True)
     context = bpy.context
-    game = game or GameSettings()
     built = build_tree(context, tree, tree.name, replace=True, leaf_image=leaf_image, bone_budget=game.bone_budget,
-                       lods=game.lods)
+                       lods=game.lods, pivots=game.pivot_painter)
     if built["budget"] is not None:
         report(f"[bones] {built['budget'].line()}")
     if built["lods"]:
@@ -66,6 +68,17 @@ def write_outputs(tree: Tree3D, out_dir: str, wanted: dict, overwrite: bool = Fa
         if f.interchange and wanted.get(f.flag):
             written[f.flag] = getattr(export, f.writer)(os.path.join(out_dir, f.file), objects, overwrite=overwrite)
             report(f"[export] {written[f.flag]}")
+    asset = built["asset"]
+    if game.pivot_painter:
+        paths = write_pivot_painter(out_dir, asset.pivots)
+        written["pivot_painter"] = paths
+        report(f"[pivot painter] {len(asset.pivots.parent)} elements, {asset.pivots.doc['levels']} levels: "
+               + ", ".join(os.path.basename(p) for p in paths))
+    if game.bone_texture:
+        tex = bone_texture(tree, asset.rig)
+        written["bone_texture"] = write_bone_texture(out_dir, tex)
+        report(f"[bone texture] {tex.doc['width']}x{tex.doc['height']} texels ({len(asset.rig.names)} bones, "
+               f"{tex.doc['frame_count']} frames): bone_anim.exr, bone_anim.json")
     if wanted.get("preview"):
         written["preview"] = render_preview(context, tree, objects, os.path.join(out_dir, by_flag("preview").file))
         report(f"[preview] {written['preview']}")
