@@ -136,6 +136,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="write Unreal Pivot Painter 2 textures beside the exports (pivot_pos_index.exr, "
                         "xaxis_extent.png; each vertex's element in UV channel 1) and pivot_painter.json (the "
                         "measured motion as wind parameters per level)")
+    p.add_argument("--collision", action="store_true",
+                   help="collision capsules for the trunk and main limbs: meshes UCP_<tree>_NN in the FBX (Unreal's "
+                        "convention) and collision.json (every capsule's ends and radius) beside the exports")
     p.add_argument("--bone-texture", action="store_true",
                    help="write the motion as a bone-animation texture beside the exports (bone_anim.exr: a row "
                         "a frame, each bone's head displacement and rotation; bone_anim.json: layout, bones, "
@@ -229,7 +232,7 @@ def _wanted(args) -> tuple[dict, list[str]]:
 def _game(args) -> GameSettings:
     """The game export's settings of the command line."""
     return GameSettings(bones=args.bones or 0, lods=args.lods, pivot_painter=args.pivot_painter,
-                        bone_texture=args.bone_texture)
+                        bone_texture=args.bone_texture, collision=args.collision)
 
 
 def _check_loop(args) -> None:
@@ -242,7 +245,7 @@ def _check_loop(args) -> None:
     if not spec(GameSettings, "lods").ok(args.lods):
         raise InputError(f"--lods {args.lods}: give a number of levels, {spec(GameSettings, 'lods').describe()}, e.g. 3")
     for on, flag in ((args.lods > 1, "--lods"), (args.pivot_painter, "--pivot-painter"),
-                     (args.bone_texture, "--bone-texture")):
+                     (args.bone_texture, "--bone-texture"), (args.collision, "--collision")):
         if on and not any(_wanted(args)[0].values()):
             raise InputError(f"{flag} comes with the Blender outputs; add one of "
                              f"{', '.join('--' + f.flag for f in FORMATS)}")

@@ -1,5 +1,6 @@
 """The engine files of a game export in Blender (issue 33): the batch's outputs with a bone budget,
-two LODs, Pivot Painter 2 and the bone texture. Every GLB primitive carries UV channel 1
+two LODs, Pivot Painter 2, the bone texture and collision capsules (in the FBX under their
+``UCP_`` names, listed in collision.json, left out of the GLB). Every GLB primitive carries UV channel 1
 (TEXCOORD_1) pointing at the PP2 element of its vertex's joint (read from the GLB's own joints and
 the texture layout Epic describes); the FBX and the .blend files are not touched; Blender itself
 loads both EXRs with the sizes and values our EXR reader reads (the format written from the
@@ -10,6 +11,7 @@ import bpy
 import numpy as np
 import pytest
 from exr_reader import rgba
+from fbx_reader import child, object_name, read_fbx, top
 from test_exports import read_glb
 from test_pivot_painter import element_at_uv
 
@@ -39,10 +41,15 @@ def read_accessor(doc, binary, index) -> np.ndarray:
 
 def test_game_export_files(tmp_path):
     tree, = api.generate("broad", node_budget=90, n_frames=30, seed=61)
-    game = GameSettings(bones=24, lods=2, pivot_painter=True, bone_texture=True)
-    written = outputs.write_outputs(tree, str(tmp_path), {"gltf": True}, fresh_scene=False, report=lambda m: None,
-                                    game=game)
-    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["tree.glb"] + game.files())
+    game = GameSettings(bones=24, lods=2, pivot_painter=True, bone_texture=True, collision=True)
+    written = outputs.write_outputs(tree, str(tmp_path), {"gltf": True, "fbx": True}, fresh_scene=False,
+                                    report=lambda m: None, game=game)
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["tree.glb", "tree.fbx"] + game.files())
+    # the capsules: in the FBX under Unreal's names, not in the GLB
+    caps = [c["name"] for c in json.load(open(tmp_path / "collision.json"))["capsules"]]
+    assert caps and all(c.startswith(f"UCP_{tree.name.replace(' ', '_')}_") for c in caps)
+    models = {object_name(n["props"][1]) for n in child(top(read_fbx(written["fbx"]), "Objects"), "Model")}
+    assert set(caps) <= models and {f"{tree.name}_LOD0", f"{tree.name}_LOD1"} <= models
     pp_doc = json.load(open(tmp_path / "pivot_painter.json"))
     W, H = pp_doc["width"], pp_doc["height"]
     doc, binary = read_glb(written["gltf"])
@@ -56,6 +63,7 @@ def test_game_export_files(tmp_path):
     assert sorted(bone_names) == sorted(names)
     elem_of_name = {n: int(pp.element_of_bone[k]) for k, n in enumerate(names)}
     checked = 0
+    assert not any(m["name"].startswith("UCP_") for m in doc["meshes"])
     for mesh in doc["meshes"]:
         for prim in mesh["primitives"]:
             attrs = prim["attributes"]

@@ -14,6 +14,7 @@ import numpy as np
 
 from ..tree3d import Tree3D
 from .budget import BudgetReport, budget_rig
+from .collision import Capsule, capsules
 from .lod import Lod, tree_lods
 from .look import Look, tree_look
 from .meshes import BranchMesh, LeafMesh, branch_arrays, leaf_arrays
@@ -28,7 +29,8 @@ class TreeAsset:
     reduction; ``mesh arrays``; ``leaf arrays``; ``lods``; ``bone budget``); ``budget`` the bone
     budget's report (None: every bone kept); ``lods`` the levels of detail (:mod:`.lod`; empty
     unless asked for; level 0 is ``branches`` and ``leaves``); ``pivots`` the rig's Pivot Painter 2
-    elements (:mod:`.pivot_painter`; None unless asked for)."""
+    elements (:mod:`.pivot_painter`; None unless asked for); ``capsules`` the trunk's and main limbs'
+    collision capsules (:mod:`.collision`; empty unless asked for)."""
 
     rig: Rig
     branches: BranchMesh | None
@@ -38,19 +40,21 @@ class TreeAsset:
     budget: BudgetReport | None = None
     lods: list[Lod] = field(default_factory=list)
     pivots: PivotPainter | None = None
+    capsules: list[Capsule] = field(default_factory=list)
 
 
 def tree_asset(tree: Tree3D, *, mesh: bool = True, leaves: bool = True, sides: int = 8,
                curliness: float | None = None, bark: str | None = None, leaf_image: str | None = None,
                every_key: bool = False, bone_budget: int | None = None, lods: int = 1,
-               pivots: bool = False) -> TreeAsset:
+               pivots: bool = False, collision: bool = False) -> TreeAsset:
     """Everything a writer copies of ``tree``: keys reduced within :data:`core.keys.KEY_TOLERANCE`
     (every frame with ``every_key``), the branch mesh with ``mesh``, the leaf bones and cards with
     ``leaves`` (when the tree has clusters), the look (``sides``, ``curliness``, ``bark`` and
     ``leaf_image`` win over what the tree records, :func:`.look.tree_look`); ``bone_budget``: the
     rig cut to at most that many bones, its motion re-fitted (:func:`.budget.budget_rig`); ``lods``
     ≥ 2: that many levels of detail (:func:`.lod.tree_lods`) on the same rig; ``pivots``: the rig's
-    Pivot Painter 2 elements (:func:`.pivot_painter.pivot_painter`)."""
+    Pivot Painter 2 elements (:func:`.pivot_painter.pivot_painter`); ``collision``: capsules of the
+    trunk and main limbs (:func:`.collision.capsules`, from the full rig)."""
     look = tree_look(tree, sides, curliness, bark, leaf_image)
     timings = {}
     t = time.perf_counter()
@@ -71,6 +75,7 @@ def tree_asset(tree: Tree3D, *, mesh: bool = True, leaves: bool = True, sides: i
         t = time.perf_counter()
         levels = tree_lods(tree, rig.rest, look, branches, leaf_mesh, int(lods))
         timings["lods"] = time.perf_counter() - t
+    caps: list[Capsule] = capsules(tree, rig) if collision else []
     report = None
     if bone_budget is not None:
         t = time.perf_counter()
@@ -89,4 +94,4 @@ def tree_asset(tree: Tree3D, *, mesh: bool = True, leaves: bool = True, sides: i
         t = time.perf_counter()
         pp = pivot_painter(tree, rig)
         timings["pivot painter"] = time.perf_counter() - t
-    return TreeAsset(rig, branches, leaf_mesh, look, timings, report, levels, pp)
+    return TreeAsset(rig, branches, leaf_mesh, look, timings, report, levels, pp, caps)

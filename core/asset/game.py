@@ -28,8 +28,10 @@ class GameSettings:
     def files(self) -> list[str]:
         """The engine files these settings write beside the exports (names in the output folder)."""
         from .bone_texture import FILES as BONE_FILES
+        from .collision import FILE as COLLISION_FILE
         from .pivot_painter import FILES as PP2_FILES
-        return (list(PP2_FILES) if self.pivot_painter else []) + (list(BONE_FILES) if self.bone_texture else [])
+        return ((list(PP2_FILES) if self.pivot_painter else []) + (list(BONE_FILES) if self.bone_texture else [])
+                + ([COLLISION_FILE] if self.collision else []))
 
     @property
     def bone_budget(self) -> int | None:

@@ -33,7 +33,7 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
                leaf_image: str | None = None, curliness: float | None = None,
                bark: str | None = None, materials: dict | None = None, update_frame: bool = True,
                keep_view: bool = False, every_key: bool = False, bone_budget: int | None = None,
-               lods: int = 1, pivots: bool = False) -> dict:
+               lods: int = 1, pivots: bool = False, collision: bool = False) -> dict:
     """Create the animated tree in a new collection ``collection_name`` under the scene collection
     (unselected, its rig active, at the scene's first frame; with ``keep_view`` the selection, the
     active object and the current frame stay as they were: a tree generated into a scene).
@@ -69,7 +69,9 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
     instead of the branch and leaf meshes, one mesh per level of detail ``"<name>_LOD0"``… (branches
     and leaves joined, :mod:`.lods`), returned as ``"lods"``; ``"mesh"`` is LOD0 then. ``pivots``:
     every mesh gets a second UV map ``"PivotPainter"``, each vertex at its Pivot Painter 2 element's
-    pixel (:mod:`core.asset.pivot_painter`). The core's :class:`core.asset.TreeAsset` is returned
+    pixel (:mod:`core.asset.pivot_painter`). ``collision``: capsule meshes ``UCP_<name>_NN`` for the
+    trunk and main limbs (:mod:`core.asset.collision`; Unreal's FBX names; shown as wire, not
+    rendered, written to FBX only), returned as ``"collision"``. The core's :class:`core.asset.TreeAsset` is returned
     as ``"asset"`` (what the engine files are written from).
 
     Returns ``{"collection", "armature", "mesh" (or None), "action", "keys" (the kept keys,
@@ -89,7 +91,7 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
     # everything Blender copies, computed in the core (rig, keys, meshes, look)
     asset = tree_asset(tree, mesh=mesh, leaves=leaves, sides=sides, curliness=curliness, bark=bark,
                        leaf_image=leaf_image, every_key=every_key, bone_budget=bone_budget, lods=lods,
-                       pivots=pivots)
+                       pivots=pivots, collision=collision)
     timings = dict(asset.timings)
     # a loop's action is named so engines loop it (Godot loops an animation whose name ends in "loop")
     action_name = f"{collection_name}_loop" if tree.meta.get("loop") else f"{collection_name} Sway"
@@ -168,6 +170,8 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
             for ob, bone in meshes:
                 objects.add_vertex_uv(ob, "PivotPainter", pp.uv(bone))
 
+        caps = [lod_build.build_capsule(c, k, rig, coll, collection_name, created) for k, c in enumerate(asset.capsules)]
+
         if old is not None:
             objects.remove_collection(old)
             for k, ob in enumerate(lod_objs):
@@ -206,7 +210,7 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
         raise
     timings["total"] = time.perf_counter() - t_total
     return {"collection": coll, "armature": rig, "mesh": mesh_obj, "action": action, "keys": rig_data.reduced,
-            "budget": asset.budget, "lods": lod_objs, "asset": asset,
+            "budget": asset.budget, "lods": lod_objs, "asset": asset, "collision": caps,
             "material": material, "leaves": leaf_obj,
             "leaf_polygons": sum(lv.leaves.quads for lv in asset.lods[:1] if lv.leaves is not None) if lod_objs
             else tree.leaves.polygons if leaf_obj is not None else 0, "timings": timings}

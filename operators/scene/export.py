@@ -97,6 +97,7 @@ def export_gltf(path: str | os.PathLike, objects: Iterable[bpy.types.Object], *,
                    # (Blender 4.3: quaternion components off by up to 1.9, the other tree's key count)
                    export_anim_single_armature=False)
     options["export_nla_strips_merged_animation_name"] = animation_name(objects) or "Animation"
+    objects = without_collision(objects)
     return _export("glTF", bpy.ops.export_scene, "gltf", path, (".glb",), objects, options, overwrite, context)
 
 
@@ -119,13 +120,20 @@ def export_usd(path: str | os.PathLike, objects: Iterable[bpy.types.Object], *, 
                    # instead of referencing a ./textures/ file that KEEP never writes
                    export_textures_mode="NEW", export_textures=True, overwrite_textures=overwrite,
                    relative_paths=True, generate_preview_surface=True, evaluation_mode="RENDER")
-    objects = list(objects)
+    objects = without_collision(objects)
     with _safe_image_names(objects):
         return _export("USD", bpy.ops.wm, "usd_export", path, (".usd", ".usda", ".usdc"), objects, options,
                        overwrite, context)
 
 
 # ----------------------------------------------------------------------------- common
+
+def without_collision(objects) -> list:
+    """``objects`` less the collision capsules (Unreal's ``UCP_`` meshes travel in FBX only; glTF
+    and USD would show them as meshes; ``collision.json`` lists them for every engine)."""
+    from .lods import COLLISION_KEY
+    return [ob for ob in objects if ob is not None and not ob.get(COLLISION_KEY)]
+
 
 def _operator_properties(module, name: str):
     """Property identifiers of ``module.name`` → ``{identifier: rna property}``, or None if absent."""

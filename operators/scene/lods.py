@@ -1,13 +1,15 @@
-"""A tree's levels of detail in Blender, copied from the asset (:mod:`core.asset.lod`): one mesh
-object per level, ``<tree>_LOD0``, ``<tree>_LOD1``… (Unity builds a LODGroup from these suffixes),
-each the branch tubes and the leaf cards joined, two materials (bark, leaf), skinned to the one
-rig. Levels after the first are hidden in the viewport and in renders (the exports still write
-them: an export links its objects into a scene of its own, where they show)."""
+"""A tree's levels of detail and collision capsules in Blender, copied from the asset
+(:mod:`core.asset.lod`, :mod:`core.asset.collision`): one mesh object per level, ``<tree>_LOD0``,
+``<tree>_LOD1``… (Unity builds a LODGroup from these suffixes), each the branch tubes and the leaf
+cards joined, two materials (bark, leaf), skinned to the one rig. Levels after the first are hidden
+in the viewport and in renders (the exports still write them: an export links its objects into a
+scene of its own, where they show). Capsules ``UCP_<tree>_NN`` are wire meshes at rest."""
 from __future__ import annotations
 
 import bpy
 import numpy as np
 
+from ...core.asset.collision import Capsule, capsule_mesh, capsule_name
 from ...core.asset.lod import Lod
 from .leaves import add_leaf_flap
 from .objects import Created, weight_by_bone
@@ -107,3 +109,30 @@ def hide_lower_levels(context, objs) -> None:
             ob.hide_set(True, view_layer=context.view_layer)
         except RuntimeError:
             pass
+
+
+#: the custom property marking a collision capsule (FBX writes it; glTF and USD leave it out)
+COLLISION_KEY = "tree_video_collision"
+
+
+def build_capsule(c: Capsule, k: int, rig, coll, tree: str, created: Created):
+    """The capsule mesh ``UCP_<tree>_NN`` (Unreal fits a capsule to it on import), child of ``rig``
+    at rest, drawn as wire and not rendered."""
+    name = capsule_name(tree, k)
+    co, loop_vert, totals = capsule_mesh(c)
+    me = created.add(bpy.data.meshes, bpy.data.meshes.new(name))
+    me.vertices.add(len(co))
+    me.vertices.foreach_set("co", co.astype(np.float32).ravel())
+    me.loops.add(len(loop_vert))
+    me.loops.foreach_set("vertex_index", loop_vert.astype(np.int32))
+    me.polygons.add(len(totals))
+    me.polygons.foreach_set("loop_start", np.concatenate([[0], np.cumsum(totals)[:-1]]).astype(np.int32))
+    me.polygons.foreach_set("loop_total", totals.astype(np.int32))
+    me.update(calc_edges=True)
+    ob = created.add(bpy.data.objects, bpy.data.objects.new(name, me))
+    ob[COLLISION_KEY] = True
+    coll.objects.link(ob)
+    ob.parent = rig
+    ob.display_type = "WIRE"
+    ob.hide_render = True
+    return ob

@@ -13,6 +13,7 @@ import bpy
 import numpy as np
 
 from ...core.asset.bone_texture import bone_texture, write_bone_texture
+from ...core.asset.collision import write_collision
 from ...core.asset.game import GameSettings
 from ...core.asset.pivot_painter import write_pivot_painter
 from ...core.errors import InputError
@@ -57,7 +58,7 @@ def write_outputs(tree: Tree3D, out_dir: str, wanted: dict, overwrite: bool = Fa
         bpy.ops.wm.read_factory_settings(use_empty=True)
     context = bpy.context
     built = build_tree(context, tree, tree.name, replace=True, leaf_image=leaf_image, bone_budget=game.bone_budget,
-                       lods=game.lods, pivots=game.pivot_painter)
+                       lods=game.lods, pivots=game.pivot_painter, collision=game.collision)
     if built["budget"] is not None:
         report(f"[bones] {built['budget'].line()}")
     if built["lods"]:
@@ -74,6 +75,9 @@ def write_outputs(tree: Tree3D, out_dir: str, wanted: dict, overwrite: bool = Fa
         written["pivot_painter"] = paths
         report(f"[pivot painter] {len(asset.pivots.parent)} elements, {asset.pivots.doc['levels']} levels: "
                + ", ".join(os.path.basename(p) for p in paths))
+    if game.collision:
+        written["collision"] = write_collision(out_dir, tree.name, asset.capsules)
+        report(f"[collision] {len(asset.capsules)} capsules UCP_*: {os.path.basename(written['collision'])}")
     if game.bone_texture:
         tex = bone_texture(tree, asset.rig)
         written["bone_texture"] = write_bone_texture(out_dir, tex)
