@@ -143,6 +143,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="write the motion as a bone-animation texture beside the exports (bone_anim.exr: a row "
                         "a frame, each bone's head displacement and rotation; bone_anim.json: layout, bones, "
                         "bind pose, fps, loop)")
+    p.add_argument("--viewer", action="store_true",
+                   help="write viewer.html (and viewer/, three.js) beside the exports: plays tree.glb in a browser, "
+                        "and from bone_anim.exr with --bone-texture; open it through a local server "
+                        "(python -m http.server). Needs --gltf")
     for f in FORMATS:                      # the output formats' registry: --fbx --usd --gltf --blend --preview
         p.add_argument(f"--{f.flag}", action="store_true", help=f.help.format(file=f.file))
     p.add_argument("--no-video", action="store_true", help="skip overlay.mp4 (overlay.png is still written)")
@@ -232,7 +236,7 @@ def _wanted(args) -> tuple[dict, list[str]]:
 def _game(args) -> GameSettings:
     """The game export's settings of the command line."""
     return GameSettings(bones=args.bones or 0, lods=args.lods, pivot_painter=args.pivot_painter,
-                        bone_texture=args.bone_texture, collision=args.collision)
+                        bone_texture=args.bone_texture, collision=args.collision, viewer=args.viewer)
 
 
 def _check_loop(args) -> None:
@@ -245,7 +249,8 @@ def _check_loop(args) -> None:
     if not spec(GameSettings, "lods").ok(args.lods):
         raise InputError(f"--lods {args.lods}: give a number of levels, {spec(GameSettings, 'lods').describe()}, e.g. 3")
     for on, flag in ((args.lods > 1, "--lods"), (args.pivot_painter, "--pivot-painter"),
-                     (args.bone_texture, "--bone-texture"), (args.collision, "--collision")):
+                     (args.bone_texture, "--bone-texture"), (args.collision, "--collision"),
+                     (args.viewer, "--viewer")):
         if on and not any(_wanted(args)[0].values()):
             raise InputError(f"{flag} comes with the Blender outputs; add one of "
                              f"{', '.join('--' + f.flag for f in FORMATS)}")

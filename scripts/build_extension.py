@@ -281,7 +281,7 @@ def run_blender(blender: list[str], *args: str) -> str:
 
 def stage_tree(stage: str) -> None:
     """Copy the working tree (what a `--source-dir .` build would see) minus the bulky bits."""
-    skip = {".git", ".venv", "out", "dist", "wheels", "__pycache__", ".pytest_cache"}
+    skip = {".git", ".venv", "out", "dist", "wheels", "__pycache__", ".pytest_cache", "node_modules"}
     shutil.copytree(ROOT, stage, ignore=lambda d, names: [n for n in names if n in skip or n.endswith(".pyc")],
                     symlinks=True)
 

@@ -7,7 +7,10 @@ cd "$(dirname "$0")/.."
 PY=${PYTHON:-python3.11}
 command -v "$PY" >/dev/null || PY=python3
 # ffmpeg: the 1080p H.264 and variable-frame-rate sample variants are encoded with its CLI
-LIBS="libx11-6 libxrender1 libxfixes3 libxi6 libxkbcommon0 libsm6 libxext6 libgl1 libegl1 ffmpeg"
+# chromium: the web viewer's checks (headless, WebGL through SwiftShader); nodejs/npm only where the
+# machine has no node (the machines here have Node 20)
+LIBS="libx11-6 libxrender1 libxfixes3 libxi6 libxkbcommon0 libsm6 libxext6 libgl1 libegl1 ffmpeg chromium"
+command -v node >/dev/null || LIBS="$LIBS nodejs npm"
 missing=""
 for p in $LIBS; do dpkg -s "$p" >/dev/null 2>&1 || missing="$missing $p"; done
 if [ -n "$missing" ]; then
@@ -24,4 +27,12 @@ if [ ! -x .venv/bin/python ] || [ "$(cat "$stamp" 2>/dev/null)" != "$want" ]; th
   .venv/bin/python -m pip install -q --upgrade pip
   .venv/bin/python -m pip install -q -r requirements.txt
   echo "$want" > "$stamp"
+fi
+# web/: three.js for the viewer, puppeteer-core and the Khronos glTF validator for its checks
+wstamp=web/node_modules/.lock.sha
+wwant=$(sha256sum web/package-lock.json | cut -d' ' -f1)
+if [ "$(cat "$wstamp" 2>/dev/null)" != "$wwant" ]; then
+  echo "setup: npm ci in web/" >&2
+  (cd web && npm ci --no-audit --no-fund --loglevel=error >/dev/null)
+  echo "$wwant" > "$wstamp"
 fi

@@ -143,7 +143,8 @@ def packed_image(name: str, rgba: np.ndarray, colorspace: str | None = None, alp
 
 def leaf_material(name: str, image_path: str | None = None, tint=(0.3, 0.5, 0.2),
                   colour=None) -> bpy.types.Material:
-    """Leaf material: the leaf image (``image_path`` or procedural, packed; alpha cut-out)
+    """Leaf material: the leaf image (``image_path`` or procedural, packed; alpha cut-out at 0.5,
+    which glTF writes as ``alphaMode`` MASK)
     multiplied by the mesh's ``Col`` colour attribute (the video's colour), Principled BSDF,
     two-sided; ``tint`` (sRGB, :func:`core.asset.look.leaf_tint`) colours the procedural leaf, ``colour`` (sRGB,
     :func:`leaf_colour`; None: ``tint``) the solid view (Viewport Display colour). The caller
@@ -179,7 +180,13 @@ def leaf_material(name: str, image_path: str | None = None, tint=(0.3, 0.5, 0.2)
         link(tex.outputs["Color"], sock["A_Color"])
         link(attr.outputs["Color"], sock["B_Color"])
         link(out_sock["Result_Color"], bsdf.inputs["Base Color"])
-        link(tex.outputs["Alpha"], bsdf.inputs["Alpha"])
+        # alpha-tested, not blended: Round is the node the glTF exporter reads as alphaMode MASK
+        # (cutoff 0.5); engines sort blended foliage wrongly, and alpha-tested cards are the convention
+        clip = nt.nodes.new("ShaderNodeMath")
+        clip.operation = "ROUND"
+        clip.location = (-180, -160)
+        link(tex.outputs["Alpha"], clip.inputs[0])
+        link(clip.outputs["Value"], bsdf.inputs["Alpha"])
         bsdf.inputs["Roughness"].default_value = 0.6
         link(bsdf.outputs["BSDF"], out.inputs["Surface"])
         out.target = "ALL"                  # what the exporters read: a Principled BSDF on the output

@@ -16,6 +16,7 @@ from ...core.asset.bone_texture import bone_texture, write_bone_texture
 from ...core.asset.collision import write_collision
 from ...core.asset.game import GameSettings
 from ...core.asset.pivot_painter import write_pivot_painter
+from ...core.asset.web_viewer import check_viewer_sources, write_viewer
 from ...core.errors import InputError
 from ...core.fileio import publish, temp_path
 from ...core.formats import FORMATS, by_flag
@@ -48,6 +49,10 @@ def write_outputs(tree: Tree3D, out_dir: str, wanted: dict, overwrite: bool = Fa
     """
     check_wanted(wanted)
     game = game or GameSettings()
+    if game.viewer:
+        check_viewer_sources()
+        if not wanted.get("gltf"):
+            raise InputError("--viewer plays tree.glb; add --gltf")
     for path in wanted_files(out_dir, wanted) + [os.path.join(out_dir, f) for f in game.files()]:
         if os.path.exists(path) and not overwrite:
             raise InputError(f"{path} exists; pass --force to overwrite or choose another --out")
@@ -83,6 +88,9 @@ def write_outputs(tree: Tree3D, out_dir: str, wanted: dict, overwrite: bool = Fa
         written["bone_texture"] = write_bone_texture(out_dir, tex)
         report(f"[bone texture] {tex.doc['width']}x{tex.doc['height']} texels ({len(asset.rig.names)} bones, "
                f"{tex.doc['frame_count']} frames): bone_anim.exr, bone_anim.json")
+    if game.viewer:
+        written["viewer"] = write_viewer(out_dir)
+        report(f"[viewer] {written['viewer']} (open it through a local server: python -m http.server)")
     if wanted.get("preview"):
         written["preview"] = render_preview(context, tree, objects, os.path.join(out_dir, by_flag("preview").file))
         report(f"[preview] {written['preview']}")
