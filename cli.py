@@ -23,7 +23,7 @@ from types import SimpleNamespace
 
 from . import __version__, api
 from .core import pipeline
-from .core.asset.game import GameSettings
+from .core.asset.game import ENGINES, GameSettings, preset
 from .core.detail.branch_mesh import MeshParams
 from .core.detail.leaf_clusters import LeafParams
 from .core.detail.twigs import TwigParams
@@ -119,31 +119,36 @@ def build_parser() -> argparse.ArgumentParser:
                         "plausible green where the video shows a dark or backlit silhouette), video (the raw "
                         "sample) or #RRGGBB (default %(default)s)")
     p.add_argument("--leaf-image", help="image of one leaf (alpha = shape) instead of the procedural leaf")
-    p.add_argument("--loop", type=float, default=_default(LoopSettings, "seconds"), metavar="SECONDS",
+    p.add_argument("--engine", choices=sorted(ENGINES), default=None,
+                   help="a game engine's preset (what it reads, how it loops, its LODs and engine files): "
+                        + "; ".join(f"{k}: {_describe_engine(k)}" for k in sorted(ENGINES))
+                        + ". Options given on the line win over the preset's")
+    p.add_argument("--loop", type=float, default=None, metavar="SECONDS",
                    help="cut the animation the Blender outputs carry to a seamless loop of about this many "
                         "seconds (a length past the clip's takes the whole clip, its seam blended; named "
-                        "<tree>_loop so engines loop it); tree3d.npz keeps the whole motion (default: no loop)")
+                        "<tree>_loop so engines loop it); tree3d.npz keeps the whole motion (default: no loop, or the "
+                        "--engine preset's)")
     p.add_argument("--bones", type=int, default=None, metavar="N",
                    help="a game rig of at most N bones in the Blender outputs (e.g. 16, 32, 64, 128): the trunk "
                         "and the bones that move the tree most kept, the rest (leaf clusters too) joined rigidly to "
                         "them, the motion re-fitted; the vertex error is printed (default: every bone)")
-    p.add_argument("--lods", type=int, default=_default(GameSettings, "lods"), metavar="K",
+    p.add_argument("--lods", type=int, default=None, metavar="K",
                    help=f"K levels of detail in the Blender outputs, {_range(GameSettings, 'lods')}: meshes "
                         "<tree>_LOD0.. (about 100 %%, 40 %%, 15 %% of LOD0's triangles, then x0.4), the same rig and "
                         "motion, under a <tree>_LODGroup empty (an FBX LOD group; Unity groups by the suffix) "
-                        "(default %(default)s: the film meshes)")
-    p.add_argument("--pivot-painter", action="store_true",
+                        "(default 1: the film meshes, or the --engine preset's)")
+    p.add_argument("--pivot-painter", action="store_true", default=None,
                    help="write Unreal Pivot Painter 2 textures beside the exports (pivot_pos_index.exr, "
                         "xaxis_extent.png; each vertex's element in UV channel 1) and pivot_painter.json (the "
                         "measured motion as wind parameters per level)")
-    p.add_argument("--collision", action="store_true",
+    p.add_argument("--collision", action="store_true", default=None,
                    help="collision capsules for the trunk and main limbs: meshes UCP_<tree>_NN in the FBX (Unreal's "
                         "convention) and collision.json (every capsule's ends and radius) beside the exports")
-    p.add_argument("--bone-texture", action="store_true",
+    p.add_argument("--bone-texture", action="store_true", default=None,
                    help="write the motion as a bone-animation texture beside the exports (bone_anim.exr: a row "
                         "a frame, each bone's head displacement and rotation; bone_anim.json: layout, bones, "
                         "bind pose, fps, loop)")
-    p.add_argument("--viewer", action="store_true",
+    p.add_argument("--viewer", action="store_true", default=None,
                    help="write viewer.html (and viewer/, three.js) beside the exports: plays tree.glb in a browser, "
                         "and from bone_anim.exr with --bone-texture; open it through a local server "
                         "(python -m http.server). Needs --gltf")
@@ -233,10 +238,35 @@ def _wanted(args) -> tuple[dict, list[str]]:
     return wanted, [f.file for f in FORMATS if wanted[f.flag]]
 
 
+def _describe_engine(engine: str) -> str:
+    e = ENGINES[engine]
+    files = [n for n in ("pivot_painter", "bone_texture", "collision", "viewer") if e.get(n)]
+    return (f"{'/'.join(e['formats'])}, {e['bones']} bones, {e['lods']} LOD(s), {e['loop_s']:g} s loop"
+            + (f", {', '.join(files).replace('_', ' ')}" if files else ""))
+
+
+def _apply_engine(args) -> None:
+    """Fill the game options the line left out from the ``--engine`` preset (or the defaults), and
+    the preset's export formats when no format flag is given."""
+    if args.bones is not None and args.bones < 1:
+        raise InputError(f"--bones {args.bones}: give at least 1 (e.g. 64), or drop it for every bone")
+    game = preset(args.engine or "", bones=args.bones, lods=args.lods, loop_s=args.loop,
+                  pivot_painter=args.pivot_painter, bone_texture=args.bone_texture, collision=args.collision,
+                  viewer=args.viewer)
+    args.bones = game.bones or None
+    args.lods, args.loop = game.lods, game.loop_s
+    args.pivot_painter, args.bone_texture = game.pivot_painter, game.bone_texture
+    args.collision, args.viewer = game.collision, game.viewer
+    if args.engine and not any(_wanted(args)[0].values()):
+        for flag in game.formats:
+            setattr(args, flag, True)
+
+
 def _game(args) -> GameSettings:
-    """The game export's settings of the command line."""
+    """The game export's settings of the command line (after :func:`_apply_engine`)."""
     return GameSettings(bones=args.bones or 0, lods=args.lods, pivot_painter=args.pivot_painter,
-                        bone_texture=args.bone_texture, collision=args.collision, viewer=args.viewer)
+                        bone_texture=args.bone_texture, collision=args.collision, viewer=args.viewer,
+                        engine=args.engine or "", loop_s=args.loop)
 
 
 def _check_loop(args) -> None:
@@ -422,6 +452,7 @@ def main(argv: list[str] | None = None) -> int:
     """Run the batch job on ``argv``; returns the exit code (argparse errors exit 2 via SystemExit)."""
     args = build_parser().parse_args(argv)
     try:
+        _apply_engine(args)
         _check_loop(args)
         gen = _plan_generation(args)        # None without --generate
         if args.video is None:

@@ -74,6 +74,21 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
         raise
 
 
+def json_bytes(doc) -> bytes:
+    """``doc`` as indented JSON, UTF-8."""
+    return (json.dumps(doc, indent=1) + "\n").encode()
+
+
 def atomic_write_json(path: str | os.PathLike, doc) -> None:
     """``doc`` as indented JSON (UTF-8) to ``path``, atomically."""
-    atomic_write_bytes(path, (json.dumps(doc, indent=1) + "\n").encode())
+    atomic_write_bytes(path, json_bytes(doc))
+
+
+def write_files(folder: str | os.PathLike, files: dict[str, bytes]) -> list[str]:
+    """Each ``{name: bytes}`` to ``folder/name``, atomically; their paths in order."""
+    paths = []
+    for name, data in files.items():
+        path = os.path.join(os.fspath(folder), name)
+        atomic_write_bytes(path, data)
+        paths.append(path)
+    return paths

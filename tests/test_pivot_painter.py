@@ -44,7 +44,7 @@ def element_at_uv(uv: np.ndarray, W: int, H: int) -> np.ndarray:
 
 def _check(tree, asset, folder):
     rig = asset.rig
-    pp = ppm.pivot_painter(tree, rig)
+    pp = ppm.pivot_elements(tree, rig)
     ppm.write_pivot_painter(folder, pp)
     pivot, parent, axis, extent, doc = read_pp2(folder)
     E = doc["elements"]

@@ -18,7 +18,7 @@ from .collision import Capsule, capsules
 from .lod import Lod, tree_lods
 from .look import Look, tree_look
 from .meshes import BranchMesh, LeafMesh, branch_arrays, leaf_arrays
-from .pivot_painter import PivotPainter, pivot_painter
+from .pivot_painter import PivotPainter, pivot_elements
 from .rig import Rig, tree_rig
 
 
@@ -53,7 +53,7 @@ def tree_asset(tree: Tree3D, *, mesh: bool = True, leaves: bool = True, sides: i
     ``leaf_image`` win over what the tree records, :func:`.look.tree_look`); ``bone_budget``: the
     rig cut to at most that many bones, its motion re-fitted (:func:`.budget.budget_rig`); ``lods``
     ≥ 2: that many levels of detail (:func:`.lod.tree_lods`) on the same rig; ``pivots``: the rig's
-    Pivot Painter 2 elements (:func:`.pivot_painter.pivot_painter`); ``collision``: capsules of the
+    Pivot Painter 2 elements (:func:`.pivot_painter.pivot_elements`); ``collision``: capsules of the
     trunk and main limbs (:func:`.collision.capsules`, from the full rig)."""
     look = tree_look(tree, sides, curliness, bark, leaf_image)
     timings = {}
@@ -92,6 +92,6 @@ def tree_asset(tree: Tree3D, *, mesh: bool = True, leaves: bool = True, sides: i
     pp = None
     if pivots:
         t = time.perf_counter()
-        pp = pivot_painter(tree, rig)
+        pp = pivot_elements(tree, rig)
         timings["pivot painter"] = time.perf_counter() - t
     return TreeAsset(rig, branches, leaf_mesh, look, timings, report, levels, pp, caps)

@@ -24,11 +24,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import bones
-from ..fileio import atomic_write_json
+from ..fileio import json_bytes, write_files
 from ..rotations import make_continuous, matrix_to_quat, quat_to_matrix
 from ..tree3d import Tree3D
 from .budget import world_motion
-from .exr import write_exr
+from .exr import exr_bytes
 from .rig import Rig
 
 #: Blender's axes → glTF's: (x, y, z) → (x, z, −y), a proper rotation
@@ -108,9 +108,12 @@ def bone_texture(tree: Tree3D, rig: Rig) -> BoneTexture:
     return BoneTexture(px, doc)
 
 
+def bone_files(tex: BoneTexture, prefix: str = "") -> dict[str, bytes]:
+    """The file contents by name, ``prefix`` before each name (the JSON names its image so)."""
+    doc = dict(tex.doc, image=prefix + FILES[0])
+    return {prefix + FILES[0]: exr_bytes(tex.pixels), prefix + FILES[1]: json_bytes(doc)}
+
+
 def write_bone_texture(folder: str | os.PathLike, tex: BoneTexture) -> list[str]:
     """``bone_anim.exr`` and ``bone_anim.json`` in ``folder``, atomically; returns their paths."""
-    paths = [os.path.join(os.fspath(folder), f) for f in FILES]
-    write_exr(paths[0], tex.pixels)
-    atomic_write_json(paths[1], tex.doc)
-    return paths
+    return write_files(folder, bone_files(tex))

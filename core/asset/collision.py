@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import bones
-from ..fileio import atomic_write_json
+from ..fileio import json_bytes, write_files
 from ..tree3d import Tree3D
 from .pivot_painter import TO_UNREAL, branch_elements, element_bases
 from .rig import Rig
@@ -134,7 +134,9 @@ def capsule_name(tree_name: str, k: int) -> str:
     return f"UCP_{tree_name.replace(' ', '_')}_{k:02d}"
 
 
+def collision_files(tree_name: str, caps: list[Capsule]) -> dict[str, bytes]:
+    return {FILE: json_bytes(collision_doc(tree_name, caps))}
+
+
 def write_collision(folder: str | os.PathLike, tree_name: str, caps: list[Capsule]) -> str:
-    path = os.path.join(os.fspath(folder), FILE)
-    atomic_write_json(path, collision_doc(tree_name, caps))
-    return path
+    return write_files(folder, collision_files(tree_name, caps))[0]

@@ -34,7 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import bones
-from ..fileio import atomic_write_bytes, atomic_write_json
+from ..fileio import json_bytes, write_files
 from ..rotations import quat_conj, quat_log, quat_mul
 from ..tree3d import Tree3D
 from .exr import exr_bytes
@@ -167,7 +167,7 @@ def wind_levels(rig: Rig, elem: np.ndarray, level: np.ndarray, fps: float) -> li
     return out
 
 
-def pivot_painter(tree: Tree3D, rig: Rig) -> PivotPainter:
+def pivot_elements(tree: Tree3D, rig: Rig) -> PivotPainter:
     """The PP2 data of ``rig`` (module docstring)."""
     elem, parent, level = branch_elements(rig)
     E = len(parent)
@@ -218,16 +218,16 @@ def textures(pp: PivotPainter) -> tuple[np.ndarray, np.ndarray]:
     return pos.reshape(H, W, 4), xe.reshape(H, W, 4)
 
 
-def write_pivot_painter(folder: str | os.PathLike, pp: PivotPainter) -> list[str]:
-    """The two textures and ``pivot_painter.json`` in ``folder``, atomically; their paths."""
+def pivot_files(pp: PivotPainter) -> dict[str, bytes]:
+    """The file contents by name: the two textures and ``pivot_painter.json``."""
     import cv2
-    folder = os.fspath(folder)
     pos, xe = textures(pp)
-    paths = [os.path.join(folder, f) for f in FILES]
-    atomic_write_bytes(paths[0], exr_bytes(pos))
     ok, png = cv2.imencode(".png", xe[..., [2, 1, 0, 3]])             # OpenCV writes BGRA
     if not ok:
         raise RuntimeError("OpenCV could not encode xaxis_extent.png")
-    atomic_write_bytes(paths[1], png.tobytes())
-    atomic_write_json(paths[2], pp.doc)
-    return paths
+    return {FILES[0]: exr_bytes(pos), FILES[1]: png.tobytes(), FILES[2]: json_bytes(pp.doc)}
+
+
+def write_pivot_painter(folder: str | os.PathLike, pp: PivotPainter) -> list[str]:
+    """The two textures and ``pivot_painter.json`` in ``folder``, atomically; their paths."""
+    return write_files(folder, pivot_files(pp))

@@ -51,7 +51,7 @@ def has_usd() -> bool:
 
 
 def export_fbx(path: str | os.PathLike, objects: Iterable[bpy.types.Object], *, overwrite: bool = False,
-               context=None) -> str:
+               context=None, extra: dict | None = None) -> str:
     """Write ``objects`` (the tree's armature and mesh) to ``path`` (``.fbx``) and return the path.
 
     Baked animation with exactly one key per frame and bone (``bake_anim_simplify_factor=0``,
@@ -60,12 +60,14 @@ def export_fbx(path: str | os.PathLike, objects: Iterable[bpy.types.Object], *, 
     its time: keys on frames 1..F came back on 2..F+1 with Blender's own import, and engines saw
     an empty first frame). Textures are embedded (``path_mode`` COPY + ``embed_textures``: with AUTO the
     leaf texture was left out and the leaves imported white). The animation stack is named after
-    the rig's action (:func:`animation_name`: ``<tree>_loop`` for a loop)."""
+    the rig's action (:func:`animation_name`: ``<tree>_loop`` for a loop). ``extra``: options an
+    engine preset sets (:func:`core.asset.game.fbx_options`: units, axes)."""
     options = dict(use_selection=True, object_types={"ARMATURE", "MESH", "EMPTY"}, add_leaf_bones=False,
                    bake_anim=True, bake_anim_use_all_bones=True, bake_anim_use_nla_strips=False,
                    bake_anim_use_all_actions=False, bake_anim_force_startend_keying=True,
                    bake_anim_step=1.0, bake_anim_simplify_factor=0.0, use_armature_deform_only=False,
                    use_mesh_modifiers=False, path_mode="COPY", embed_textures=True, batch_mode="OFF")
+    options.update(extra or {})
     return _export("FBX", bpy.ops.export_scene, "fbx", path, (".fbx",), objects, options, overwrite, context,
                    keys_from_zero=True)
 

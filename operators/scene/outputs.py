@@ -12,13 +12,11 @@ import tempfile
 import bpy
 import numpy as np
 
-from ...core.asset.bone_texture import bone_texture, write_bone_texture
-from ...core.asset.collision import write_collision
-from ...core.asset.game import GameSettings
-from ...core.asset.pivot_painter import write_pivot_painter
+from ...core.asset.engine_files import engine_files, engine_line
+from ...core.asset.game import GameSettings, fbx_options
 from ...core.asset.web_viewer import check_viewer_sources, write_viewer
 from ...core.errors import InputError
-from ...core.fileio import publish, temp_path
+from ...core.fileio import publish, temp_path, write_files
 from ...core.formats import FORMATS, by_flag
 from ...core.loop import maybe_loop
 from ...core.tree3d import Tree3D
@@ -72,22 +70,15 @@ def write_outputs(tree: Tree3D, out_dir: str, wanted: dict, overwrite: bool = Fa
     written = {}
     for f in FORMATS:                       # the interchange files, in the registry's order
         if f.interchange and wanted.get(f.flag):
-            written[f.flag] = getattr(export, f.writer)(os.path.join(out_dir, f.file), objects, overwrite=overwrite)
+            extra = {"extra": fbx_options(game.engine)} if f.flag == "fbx" else {}
+            written[f.flag] = getattr(export, f.writer)(os.path.join(out_dir, f.file), objects, overwrite=overwrite,
+                                                        **extra)
             report(f"[export] {written[f.flag]}")
     asset = built["asset"]
-    if game.pivot_painter:
-        paths = write_pivot_painter(out_dir, asset.pivots)
-        written["pivot_painter"] = paths
-        report(f"[pivot painter] {len(asset.pivots.parent)} elements, {asset.pivots.doc['levels']} levels: "
-               + ", ".join(os.path.basename(p) for p in paths))
-    if game.collision:
-        written["collision"] = write_collision(out_dir, tree.name, asset.capsules)
-        report(f"[collision] {len(asset.capsules)} capsules UCP_*: {os.path.basename(written['collision'])}")
-    if game.bone_texture:
-        tex = bone_texture(tree, asset.rig)
-        written["bone_texture"] = write_bone_texture(out_dir, tex)
-        report(f"[bone texture] {tex.doc['width']}x{tex.doc['height']} texels ({len(asset.rig.names)} bones, "
-               f"{tex.doc['frame_count']} frames): bone_anim.exr, bone_anim.json")
+    files = engine_files(tree, asset, game)
+    if files:
+        written["engine"] = write_files(out_dir, files)
+        report(f"[engine files] {engine_line(asset, game)}: {', '.join(files)}")
     if game.viewer:
         written["viewer"] = write_viewer(out_dir)
         report(f"[viewer] {written['viewer']} (open it through a local server: python -m http.server)")

@@ -1,0 +1,38 @@
+"""The engine files of a game tree in one place (issue 33): Pivot Painter 2's textures and JSON, the
+bone-animation texture and its JSON, the collision capsules' JSON, as ``{file name: bytes}`` the
+batch writes into its output folder and the panel keeps in the tree's collection until Export
+writes them beside the tree's file (each name prefixed with the file's stem there)."""
+from __future__ import annotations
+
+from ..tree3d import Tree3D
+from . import TreeAsset
+from .bone_texture import bone_files, bone_texture
+from .collision import collision_files
+from .game import GameSettings
+from .pivot_painter import pivot_files
+
+
+def engine_files(tree: Tree3D, asset: TreeAsset, game: GameSettings, prefix: str = "") -> dict[str, bytes]:
+    """What ``game`` asks for of ``asset`` (made from ``tree`` with ``pivots`` and ``collision`` as
+    ``game`` says), ``prefix`` before each file name."""
+    out: dict[str, bytes] = {}
+    if game.pivot_painter:
+        assert asset.pivots is not None, "the asset was made without its Pivot Painter elements"
+        out.update({prefix + k: v for k, v in pivot_files(asset.pivots).items()})
+    if game.bone_texture:
+        out.update(bone_files(bone_texture(tree, asset.rig), prefix))
+    if game.collision:
+        out.update({prefix + k: v for k, v in collision_files(tree.name, asset.capsules).items()})
+    return out
+
+
+def engine_line(asset: TreeAsset, game: GameSettings) -> str:
+    """What the engine files hold, for a report line."""
+    parts = []
+    if game.pivot_painter and asset.pivots is not None:
+        parts.append(f"Pivot Painter {len(asset.pivots.parent)} elements in {asset.pivots.doc['levels']} levels")
+    if game.bone_texture:
+        parts.append(f"bone texture {len(asset.rig.names)} bones")
+    if game.collision:
+        parts.append(f"{len(asset.capsules)} capsules")
+    return ", ".join(parts)
