@@ -16,10 +16,11 @@ import uuid
 
 import bpy
 
+from ..core.asset.game import fbx_options
 from ..core.errors import InputError
 from ..core.formats import by_key, interchange
 from . import jobs
-from .scene import export, export_process, trees
+from .scene import export, export_process, game, trees
 
 #: the last finished export (shown in the panel)
 LAST_EXPORT = export.Exported()
@@ -96,7 +97,8 @@ def plan(context, props) -> list:
         raise InputError("this Blender was built without USD; export FBX or glTF instead")
     paths = [os.path.join(folder, name) for name in file_names(colls, props)]
     if not props.overwrite:
-        existing = [p for p in paths if os.path.exists(p)]
+        extra = [p for coll, path in zip(colls, paths) for p in game.kept_paths(coll, path)]
+        existing = [p for p in paths + extra if os.path.exists(p)]
         if existing:
             more = f" (and {len(existing) - 1} more)" if len(existing) > 1 else ""
             fix = "choose another name" if len(paths) == 1 else "choose another folder"
@@ -131,7 +133,7 @@ def _staged_tree(coll, path: str, name: str, staged: list) -> tuple[list, str]:
 
 
 def _background(items, names: list[str], sizes: list[float], fmt: str, overwrite: bool,
-                staged: list, running: list, total: float, seconds: list):
+                staged: list, running: list, total: float, seconds: list, fbx_extra: dict | None = None):
     """Yield ``(stage, fraction)`` every tick while background Blenders write ``items`` to staging
     files (the trees shared among :data:`.scene.export_process.PARALLEL` processes by size, each
     writing its trees one after another); ``staged`` gets (staging file, path) per tree and
@@ -139,7 +141,7 @@ def _background(items, names: list[str], sizes: list[float], fmt: str, overwrite
     Raises InputError naming the tree that failed."""
     jobs = [_staged_tree(coll, path, name, staged) for (coll, path), name in zip(items, names)]
     for part in export_process.split(sizes):
-        running.append([export_process.start(fmt, [jobs[i] for i in part], overwrite), part, 0])
+        running.append([export_process.start(fmt, [jobs[i] for i in part], overwrite, fbx_extra), part, 0])
     n, finished, so_far = len(items), 0, 0.0
     while running:
         for entry in list(running):
@@ -167,7 +169,8 @@ def _background(items, names: list[str], sizes: list[float], fmt: str, overwrite
                    f"closing the background exports ({finished}/{n} written)"), so_far / total
 
 
-def export_steps(items, fmt: str, overwrite: bool, made_folder: bool, background: bool | None = None):
+def export_steps(items, fmt: str, overwrite: bool, made_folder: bool, background: bool | None = None,
+                 fbx_extra: dict | None = None):
     """Generator for :class:`.jobs.SteppedJob`: exports tree by tree (``items`` from :func:`plan`)
     to temporary files, yielding ``(stage, fraction)`` before each (fraction by bones × frames),
     then renames them all to their paths; returns :class:`.scene.export.Exported`. Closing it early removes the
@@ -175,8 +178,10 @@ def export_steps(items, fmt: str, overwrite: bool, made_folder: bool, background
     :func:`.scene.export_process.available`, a GUI session) the trees are written by background
     Blenders (:data:`.scene.export_process.PARALLEL`, each writing its share one tree after
     another) and the generator yields every tick while they run, so the UI keeps drawing and Esc
-    stops them."""
+    stops them. ``fbx_extra``: an engine preset's FBX options (:func:`core.asset.game.fbx_options`).
+    A game tree's engine files (:mod:`.scene.game`) are staged and renamed with its file."""
     background = export_process.available() if background is None else background
+    extra = {"extra": dict(fbx_extra)} if fmt == "FBX" and fbx_extra else {}
     writer = getattr(export, by_key(fmt).writer)
     names = [coll.name for coll, _ in items]
     sizes = [trees.tree_size(coll) for coll, _ in items]
@@ -190,18 +195,27 @@ def export_steps(items, fmt: str, overwrite: bool, made_folder: bool, background
     try:
         if background:
             yield f"exporting {len(items)} trees in the background", 0.0
-            yield from _background(items, names, sizes, fmt, overwrite, staged, running, total, seconds)
+            yield from _background(items, names, sizes, fmt, overwrite, staged, running, total, seconds,
+                                   extra.get("extra"))
         else:
             for k, ((coll, path), name, size) in enumerate(zip(items, names, sizes)):
                 yield f"exporting '{name}' ({k + 1}/{len(items)})", so_far / total
                 objects, tmp = _staged_tree(coll, path, name, staged)
                 t = time.perf_counter()
                 try:
-                    writer(tmp, objects, overwrite=overwrite, context=bpy.context)   # (USD: its textures/ too)
+                    writer(tmp, objects, overwrite=overwrite, context=bpy.context, **extra)  # (USD: textures/ too)
                 except (InputError, export.ExportError) as exc:
                     raise InputError(f"'{name}': {str(exc).replace(tmp, path)}; no file written") from None
                 so_far += size
                 seconds[k] = time.perf_counter() - t
+        for coll, path in items:            # a game tree's engine files beside its file
+            stem = os.path.splitext(os.path.basename(path))[0]
+            for name, data in game.kept_files(coll, stem).items():
+                final = os.path.join(os.path.dirname(path), name)
+                tmp = _staging_path(final)
+                staged.append((tmp, final))
+                with open(tmp, "wb") as fh:
+                    fh.write(data)
         if not overwrite:
             for _, path in staged:
                 if os.path.exists(path):
@@ -339,7 +353,9 @@ class TREE_OT_export(jobs.JobOperator, bpy.types.Operator):
                              "choose another folder") from None
         if not os.access(folder, os.W_OK):
             raise InputError(f"the export folder '{folder}' is not writable; choose another folder")
-        return jobs.SteppedJob(export_steps(items, props.export_format, props.overwrite, made))
+        engine = "" if props.game_engine == "NONE" else props.game_engine.lower()
+        return jobs.SteppedJob(export_steps(items, props.export_format, props.overwrite, made,
+                                            fbx_extra=fbx_options(engine)))
 
     def done(self, context, result):
         LAST_EXPORT.paths, LAST_EXPORT.seconds, LAST_EXPORT.total = result.paths, result.seconds, result.total

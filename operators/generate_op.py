@@ -24,6 +24,7 @@ from .scene import stored, timing, trees
 from .scene.build import build_tree
 from .scene.checks import missing_file, refuse
 from .scene.forest import ForestBuild
+from .scene.game import build_kwargs, game_settings, keep_engine_files
 from .scene.objects import evaluated_world_mesh, unique_collection_name
 
 #: seconds of building per timer tick while a forest is built
@@ -218,8 +219,10 @@ class TREE_OT_generate(jobs.JobOperator, bpy.types.Operator):
             tree, note = maybe_loop(tree, context.scene.tree_video.loop_seconds)
             if note:
                 self.report({"INFO"}, note)
+            game = game_settings(context.scene.tree_video)
             built = build_tree(context, tree, name, curliness=context.scene.tree_video.curliness,
-                               bark=context.scene.tree_video.bark, keep_view=True)
+                               bark=context.scene.tree_video.bark, keep_view=True, **build_kwargs(game))
+            keep_engine_files(built, tree, game)
         except InputError as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
@@ -271,7 +274,7 @@ class TREE_OT_generate_forest(jobs.JobOperator, bpy.types.Operator):
     def done(self, context, result):
         props = context.scene.tree_video
         state = ForestBuild(context, self._name, *result, curliness=props.curliness, bark=props.bark,
-                            loop_s=props.loop_seconds)
+                            loop_s=props.loop_seconds, game=game_settings(props))
         if self._timer is None and getattr(self, "_invoked", False):
             self._pending = state
             # still a running job while the trees are built: the other buttons stay greyed and

@@ -22,6 +22,7 @@ from . import jobs
 from .scene import annotation, clip_overlay, clip_view, stored
 from .scene.build import build_tree
 from .scene.checks import missing_file, refuse
+from .scene.game import build_kwargs, game_settings, keep_engine_files
 
 
 def cache_dir() -> str:
@@ -200,8 +201,11 @@ class TREE_OT_reconstruct(jobs.JobOperator, bpy.types.Operator):
             tree, note = maybe_loop(tree, props.loop_seconds)
             if note:
                 self.report({"INFO"}, note)
+            game = game_settings(props)
             built = build_tree(context, tree, tree.name, replace=props.replace_existing, mesh=props.build_mesh,
-                               leaf_image=bpy.path.abspath(props.leaf_image) if props.leaf_image else None)
+                               leaf_image=bpy.path.abspath(props.leaf_image) if props.leaf_image else None,
+                               **build_kwargs(game))
+            keep_engine_files(built, tree, game)
         except InputError as exc:
             self.report({"ERROR"}, str(exc))
             return None

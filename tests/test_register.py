@@ -62,7 +62,7 @@ def test_panel_labels_and_operators_are_registered():
         view3d = [c for c in panel.classes if c.bl_space_type == "VIEW_3D"]
         clip = [c for c in panel.classes if c.bl_space_type == "CLIP_EDITOR"]     # Track & Preview's sidebar
         assert {c.bl_label for c in view3d} == {"Tree from Video", "Source", "Outline", "Reconstruction", "Output",
-                                                "Generate", "Export"}
+                                                "Game Export", "Generate", "Export"}
         assert {c.bl_label for c in clip} == {"Tree from Video", "Source", "Outline"} and len(view3d) + len(clip) == \
             len(panel.classes)
         assert all(c.is_registered and c.bl_category == "Tree" and c.bl_region_type == "UI" for c in panel.classes)

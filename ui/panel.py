@@ -197,6 +197,25 @@ class TREE_PT_output(_TreePanel, bpy.types.Panel):
             sub.label(text=f"Last tree: {props.leaf_polygons:,} leaf polygons", icon="INFO")
 
 
+class TREE_PT_game(_TreePanel, bpy.types.Panel):
+    bl_label = "Game Export"
+    bl_parent_id = "TREE_PT_main"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        props = context.scene.tree_video
+        col = self.column()
+        col.prop(props, "game_engine")
+        col.prop(props, "game_bones")
+        col.prop(props, "game_lods")
+        col.prop(props, "loop_seconds")
+        col.prop(props, "game_collision")
+        col.prop(props, "game_pivot_painter")
+        col.prop(props, "game_bone_texture")
+        col.label(text="For the next tree built", icon="INFO")
+        col.label(text="Export writes its engine files", icon="BLANK1")
+
+
 class TREE_PT_generate(_TreePanel, bpy.types.Panel):
     bl_label = "Generate"
     bl_parent_id = "TREE_PT_main"
@@ -273,7 +292,8 @@ TREE_PT_clip_source = _in_clip_editor(TREE_PT_source, "TREE_PT_clip_source", "TR
 TREE_PT_clip_outline = _in_clip_editor(TREE_PT_outline, "TREE_PT_clip_outline", "TREE_PT_clip_main")
 
 
-classes = (TREE_PT_main, TREE_PT_source, TREE_PT_outline, TREE_PT_reconstruction, TREE_PT_output, TREE_PT_generate,
+classes = (TREE_PT_main, TREE_PT_source, TREE_PT_outline, TREE_PT_reconstruction, TREE_PT_output, TREE_PT_game,
+           TREE_PT_generate,
            TREE_PT_export, TREE_PT_clip_main, TREE_PT_clip_source, TREE_PT_clip_outline)
 
 register, unregister = bpy.utils.register_classes_factory(classes)

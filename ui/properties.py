@@ -6,10 +6,11 @@ A setting the core has a parameter for takes its default and limits from the cor
 candidates take their defaults from :class:`MotionParams` / :class:`LiftParams` instances."""
 import bpy
 
+from ..core.asset.game import ENGINES, GameSettings, preset
 from ..core.detail.branch_mesh import MeshParams
 from ..core.detail.leaf_clusters import LeafParams
 from ..core.detail.twigs import TwigParams
-from ..core.formats import interchange
+from ..core.formats import by_flag, interchange
 from ..core.generate.batch import GenerateRequest
 from ..core.generate.growth import GrowParams
 from ..core.loop import LoopSettings
@@ -38,6 +39,8 @@ CORE_FIELDS = {
     "gen_twig_depth": (GrowParams, "twig_depth"),
     "gen_height": (GenerateRequest, "height_m"),
     "loop_seconds": (LoopSettings, "seconds"),
+    "game_bones": (GameSettings, "bones"),
+    "game_lods": (GameSettings, "lods"),
     "gen_nodes": (GenerateRequest, "nodes"),
     "gen_wind": (GenerateRequest, "wind"),
     "gen_seed": (GenerateRequest, "seed"),
@@ -55,6 +58,25 @@ CORE_FIELDS = {
 def _core(prop: str, **kw) -> dict:
     """``default``/``min``/``max`` of panel property ``prop`` from its :data:`CORE_FIELDS` entry."""
     return ranged(*CORE_FIELDS[prop], **kw)
+
+
+def _engine_text(engine: str) -> str:
+    e = ENGINES[engine]
+    files = [n.replace("_", " ") for n in ("pivot_painter", "bone_texture", "collision") if e.get(n)]
+    return (f"{'/'.join(e['formats']).upper()}, {e['bones']} bones, {e['lods']} LOD(s), a {e['loop_s']:g} s loop"
+            + (f", {', '.join(files)}" if files else ""))
+
+
+def _apply_engine(self, context):
+    """Choosing an engine fills the game settings (and the loop and the export format) from its
+    preset (:data:`core.asset.game.ENGINES`); the fields stay editable."""
+    engine = "" if self.game_engine == "NONE" else self.game_engine.lower()
+    g = preset(engine)
+    self.game_bones, self.game_lods = int(g.bones), int(g.lods)
+    self.game_collision, self.game_pivot_painter, self.game_bone_texture = g.collision, g.pivot_painter, g.bone_texture
+    self.loop_seconds = float(g.loop_s)
+    if g.formats:
+        self.export_format = by_flag(g.formats[0]).key
 
 
 def _library_items(self, context):
@@ -313,6 +335,28 @@ class TreeVideoSettings(bpy.types.PropertyGroup):
                                          **_blend_relative())
     overwrite: bpy.props.BoolProperty(name="Overwrite", default=False,
                                       description="Replace existing files in the output folder")
+    # the game export (issue 33): applied when a tree is built (Reconstruct, Generate, Forest); the
+    # engine files are kept with the tree and written beside it by Export
+    game_engine: bpy.props.EnumProperty(
+        name="Engine", default="NONE", update=_apply_engine,
+        items=[("NONE", "Film (no preset)", "Every bone, the film meshes, no engine files")]
+        + [(k.upper(), k.capitalize() if k != "web" else "Web (three.js)", _engine_text(k)) for k in sorted(ENGINES)],
+        description="A game engine's preset: fills Bones, LODs, Loop and the engine files below")
+    game_bones: bpy.props.IntProperty(name="Bones", **_core("game_bones", soft_max=256),
+                                      description="The most bones a new tree's rig keeps (0: every bone); the motion "
+                                                  "is re-fitted and the vertex error reported")
+    game_lods: bpy.props.IntProperty(name="LODs", **_core("game_lods"),
+                                     description="Levels of detail <tree>_LOD0.. (about 100 %, 40 %, 15 % of LOD0's "
+                                                 "triangles) on the same rig; 1: the film meshes")
+    game_collision: bpy.props.BoolProperty(name="Collision Capsules", default=False,
+                                           description="Capsules UCP_<tree>_NN for the trunk and main limbs (in the FBX) "
+                                                       "and collision.json")
+    game_pivot_painter: bpy.props.BoolProperty(name="Pivot Painter 2", default=False,
+                                               description="Unreal Pivot Painter 2 textures (element per branch in UV "
+                                                           "channel 1) and the measured wind per level")
+    game_bone_texture: bpy.props.BoolProperty(name="Bone Texture", default=False,
+                                              description="The motion as a bone-animation texture (EXR + JSON) for "
+                                                          "vertex-shader skinning")
     export_format: bpy.props.EnumProperty(
         name="Format", default="FBX",
         items=[(f.key, f.label, f.description) for f in interchange()],

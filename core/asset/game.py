@@ -58,8 +58,9 @@ ENGINES: dict[str, dict] = {
     "web": dict(formats=("gltf",), bones=32, lods=2, loop_s=10.0, bone_texture=True, viewer=True),
 }
 
-#: FBX exporter options per engine (Blender's io_scene_fbx): Unreal reads Blender's defaults (metres
-#: written with a unit scale it converts to cm); Unity gets FBX units scaled to 1 (no 100× on import)
+#: FBX exporter options per engine (Blender's io_scene_fbx): Unreal reads Blender's defaults; Unity
+#: gets "FBX Units Scale" (the metres in the file's UnitScaleFactor, the objects at scale 1: the
+#: setting Blender users pick so Unity imports no ×100 object scale)
 FBX_OPTIONS: dict[str, dict] = {"unreal": {}, "unity": {"apply_scale_options": "FBX_SCALE_UNITS"}}
 
 

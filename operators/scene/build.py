@@ -211,7 +211,7 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
     timings["total"] = time.perf_counter() - t_total
     return {"collection": coll, "armature": rig, "mesh": mesh_obj, "action": action, "keys": rig_data.reduced,
             "budget": asset.budget, "lods": lod_objs, "asset": asset, "collision": caps,
-            "material": material, "leaves": leaf_obj,
+            "material": material, "leaves": leaf_obj, "leaf_material": leaf_mat,
             "leaf_polygons": sum(lv.leaves.quads for lv in asset.lods[:1] if lv.leaves is not None) if lod_objs
             else tree.leaves.polygons if leaf_obj is not None else 0, "timings": timings}
 

@@ -62,12 +62,14 @@ class ExportProcess:
     :meth:`error` (the worker's message, or the last lines it printed), :meth:`kill`;
     :meth:`cleanup` removes the temporary copy (both safe to call twice)."""
 
-    def __init__(self, fmt: str, jobs: Sequence[tuple[Sequence, str]], overwrite: bool):
+    def __init__(self, fmt: str, jobs: Sequence[tuple[Sequence, str]], overwrite: bool,
+                 fbx_extra: dict | None = None):
         """``jobs``: (the tree's objects, the file to write) per tree, written in this order."""
         self.folder = tempfile.mkdtemp(prefix="tree_video_export_")
         blend = os.path.join(self.folder, "trees.blend")
         bpy.data.libraries.write(blend, {ob for objects, _ in jobs for ob in objects}, fake_user=True)
         args = json.dumps({"root": ROOT, "path": sys.path, "format": fmt, "overwrite": bool(overwrite),
+                           "fbx_extra": dict(fbx_extra or {}),
                            "jobs": [{"objects": [ob.name for ob in objects], "out": out}
                                     for objects, out in jobs]})
         self.log = open(os.path.join(self.folder, "log.txt"), "w+")
@@ -116,7 +118,8 @@ class ExportProcess:
         shutil.rmtree(self.folder, ignore_errors=True)
 
 
-def start(fmt: str, jobs: Sequence[tuple[Sequence, str]], overwrite: bool) -> ExportProcess:
+def start(fmt: str, jobs: Sequence[tuple[Sequence, str]], overwrite: bool,
+          fbx_extra: dict | None = None) -> ExportProcess:
     """Start exporting, as ``fmt`` ("FBX", "GLB", "USD"), each job's objects to its file, one after
-    another in one background Blender."""
-    return ExportProcess(fmt, jobs, overwrite)
+    another in one background Blender (``fbx_extra``: an engine preset's FBX options)."""
+    return ExportProcess(fmt, jobs, overwrite, fbx_extra)

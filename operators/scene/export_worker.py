@@ -41,7 +41,8 @@ def main(args: dict) -> int:
         bpy.context.view_layer.update()
         start = time.perf_counter()
         try:
-            writer(job["out"], objects, overwrite=bool(args.get("overwrite")))
+            extra = {"extra": args["fbx_extra"]} if args["format"] == "FBX" and args.get("fbx_extra") else {}
+            writer(job["out"], objects, overwrite=bool(args.get("overwrite")), **extra)
         except (errors.InputError, export.ExportError) as exc:
             print(f"{ERROR_PREFIX}{exc}", flush=True)
             return 2

@@ -7,8 +7,10 @@ import time
 
 import bpy
 
+from ...core.asset.game import GameSettings
 from ...core.loop import maybe_loop
 from .build import build_tree
+from .game import build_kwargs, keep_engine_files
 from .objects import remove_collection, unique_collection_name
 from .timing import fit_scene_timing
 from .trees import scene_trees
@@ -18,11 +20,13 @@ class ForestBuild:
     """Builds the grown trees into one collection ``name``, a few per :meth:`step`, each at its
     slot's position and turn, with the branch mesh's ``curliness`` and ``bark``; all trees share the
     first one's bark and leaf materials; ``loop_s`` > 0 cuts each tree's motion to a seamless loop of
-    about that many seconds (:func:`core.loop.maybe_loop`). ``remove()`` undoes it all."""
+    about that many seconds (:func:`core.loop.maybe_loop`); ``game`` the game settings each tree is
+    built with (:mod:`.game`). ``remove()`` undoes it all."""
 
     def __init__(self, context, name: str, model, trees, slots, *, curliness: float | None = None,
-                 bark: str | None = None, loop_s: float = 0.0):
+                 bark: str | None = None, loop_s: float = 0.0, game: GameSettings | None = None):
         self.trees, self.slots, self.model = trees, slots, model
+        self.game = game or GameSettings()
         self.curliness, self.bark, self.loop_s = curliness, bark, loop_s
         self.coll = bpy.data.collections.new(name)
         context.scene.collection.children.link(self.coll)
@@ -48,7 +52,9 @@ class ForestBuild:
             try:
                 with context.temp_override(scene=scratch, view_layer=scratch.view_layers[0]):
                     built = build_tree(bpy.context, tree, name, materials=self.materials,
-                                       curliness=self.curliness, bark=self.bark, update_frame=False)
+                                       curliness=self.curliness, bark=self.bark, update_frame=False,
+                                       **build_kwargs(self.game))
+                keep_engine_files(built, tree, self.game)
                 scratch.collection.children.unlink(built["collection"])
                 self.coll.children.link(built["collection"])
             finally:
@@ -59,7 +65,7 @@ class ForestBuild:
             rig.rotation_euler = (0.0, 0.0, slot.rotation_z)
             if self.materials is None:
                 self.materials = {"bark": built["material"],
-                                  "leaf": built["leaves"].data.materials[0] if built["leaves"] is not None else None}
+                                  "leaf": built["leaf_material"]}
             self.k += 1
         if self.finished:
             scene = context.scene                         # the artist's frame and selection are kept
