@@ -1,5 +1,6 @@
 """What a game engine gets (issue 33): one GLB per option for a reconstructed tree — every bone
-and frame (the film asset), a 10 s seamless loop, a 64-bone rig, and both — with its joints,
+and frame (the film asset), a 10 s seamless loop, a 64-bone rig, both, with three LODs, packed for
+engines (core/asset/glb_pack.py, JPEG bark), with Pivot Painter's UVs — with its joints,
 animation frames, size and export seconds, and the bone budget's vertex error. The
 reconstruction is the ``long`` wind sample (480×360, 24 fps, 30 s; the product's look), its first
 360 frames, reconstructed once into ``--work`` (not timed). bpy 5.0.1 wheel, 2 cores.
@@ -43,17 +44,21 @@ def main() -> None:
 
     from tree_from_video.core.loop import loop_tree
     from tree_from_video.core.tree3d import load_tree
-    from tree_from_video.operators.scene import build, export
+    from tree_from_video.operators.scene import build, export, trees
     tree = load_tree(path)
     rows = []
-    for label, loop_s, bones in (("film asset: every bone and frame", 0.0, None), ("10 s loop", 10.0, None),
-                                 ("64 bones", 0.0, 64), ("64 bones, 10 s loop", 10.0, 64)):
+    for label, loop_s, bones, lods, game in (
+            ("film asset: every bone and frame", 0.0, None, 1, False), ("10 s loop", 10.0, None, 1, False),
+            ("64 bones", 0.0, 64, 1, False), ("64 bones, 10 s loop", 10.0, 64, 1, False),
+            ("64 bones, 10 s loop, LOD0..2", 10.0, 64, 3, False),
+            ("the same, packed for engines (game GLB)", 10.0, 64, 3, True),
+            ("the same with Pivot Painter UVs (--engine unreal's GLB)", 10.0, 64, 3, "pp2")):
         bpy.ops.wm.read_factory_settings(use_empty=True)
         t = loop_tree(tree, loop_s)[0] if loop_s else tree
-        built = build.build_tree(bpy.context, t, "Tree", bone_budget=bones)
+        built = build.build_tree(bpy.context, t, "Tree", bone_budget=bones, lods=lods, pivots=game == "pp2")
         out = os.path.join(args.work, f"game_{len(rows)}.glb")
         t0 = time.perf_counter()
-        export.export_gltf(out, [built["armature"], built["mesh"], built["leaves"]], overwrite=True)
+        export.export_gltf(out, trees.tree_objects(built["collection"]), overwrite=True, game=bool(game))
         seconds = time.perf_counter() - t0
         joints, keys, mb = glb_facts(out)
         err = built["budget"].line() if built["budget"] is not None else "—"

@@ -140,8 +140,10 @@ def _background(items, names: list[str], sizes: list[float], fmt: str, overwrite
     ``running`` the processes while they run, ``seconds`` each tree's export time as it is written.
     Raises InputError naming the tree that failed."""
     jobs = [_staged_tree(coll, path, name, staged) for (coll, path), name in zip(items, names)]
+    games = [fmt == "GLB" and game.is_game_tree(coll) for coll, _ in items]
     for part in export_process.split(sizes):
-        running.append([export_process.start(fmt, [jobs[i] for i in part], overwrite, fbx_extra), part, 0])
+        running.append([export_process.start(fmt, [jobs[i] for i in part], overwrite, fbx_extra,
+                                             [games[i] for i in part]), part, 0])
     n, finished, so_far = len(items), 0, 0.0
     while running:
         for entry in list(running):
@@ -203,7 +205,8 @@ def export_steps(items, fmt: str, overwrite: bool, made_folder: bool, background
                 objects, tmp = _staged_tree(coll, path, name, staged)
                 t = time.perf_counter()
                 try:
-                    writer(tmp, objects, overwrite=overwrite, context=bpy.context, **extra)  # (USD: textures/ too)
+                    packed = {"game": True} if fmt == "GLB" and game.is_game_tree(coll) else {}
+                    writer(tmp, objects, overwrite=overwrite, context=bpy.context, **extra, **packed)  # USD: textures/
                 except (InputError, export.ExportError) as exc:
                     raise InputError(f"'{name}': {str(exc).replace(tmp, path)}; no file written") from None
                 so_far += size

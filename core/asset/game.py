@@ -42,6 +42,12 @@ class GameSettings:
                 + ([COLLISION_FILE] if self.collision else []) + (list(VIEWER_FILES) if self.viewer else []))
 
     @property
+    def is_game(self) -> bool:
+        """Anything asked for a game engine (then the GLB is packed for engines)."""
+        return bool(self.engine or self.bones or self.lods > 1 or self.pivot_painter or self.bone_texture
+                    or self.collision or self.viewer)
+
+    @property
     def bone_budget(self) -> int | None:
         """The budget :func:`core.asset.tree_asset` takes (None: every bone)."""
         return int(self.bones) if self.bones else None

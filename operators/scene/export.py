@@ -73,13 +73,16 @@ def export_fbx(path: str | os.PathLike, objects: Iterable[bpy.types.Object], *, 
 
 
 def export_gltf(path: str | os.PathLike, objects: Iterable[bpy.types.Object], *, overwrite: bool = False,
-                context=None) -> str:
+                context=None, game: bool = False) -> str:
     """Write ``objects`` to a binary glTF ``path`` (``.glb``) and return the path.
 
     One skin (every bone a joint), the rig's current action sampled at every frame and no other
     action of the file (no optimisation that would drop constant keys), times starting at 0 s
     (``export_anim_slide_to_zero``, where this Blender's exporter has it); the animation is named
-    after the rig's action (:func:`animation_name`: ``<tree>_loop`` for a loop)."""
+    after the rig's action (:func:`animation_name`: ``<tree>_loop`` for a loop). ``game``: opaque
+    images as JPEG (the alpha-tested leaf stays PNG) and the file packed for engines
+    (:func:`core.asset.glb_pack.pack_glb`: byte weights and colours, short UVs, no constant scale
+    channels)."""
     options = dict(export_format="GLB", use_selection=True, export_animations=True,
                    export_animation_mode="ACTIVE_ACTIONS", export_frame_range=True, export_frame_step=1,
                    export_force_sampling=True, export_anim_slide_to_zero=True,
@@ -100,7 +103,15 @@ def export_gltf(path: str | os.PathLike, objects: Iterable[bpy.types.Object], *,
                    export_anim_single_armature=False)
     options["export_nla_strips_merged_animation_name"] = animation_name(objects) or "Animation"
     objects = without_collision(objects)
-    return _export("glTF", bpy.ops.export_scene, "gltf", path, (".glb",), objects, options, overwrite, context)
+    if game:
+        options["export_image_format"] = "JPEG"
+    return _export("glTF", bpy.ops.export_scene, "gltf", path, (".glb",), objects, options, overwrite, context,
+                   post=_pack_file if game else None)
+
+
+def _pack_file(path: str) -> None:
+    from ...core.asset.glb_pack import pack_glb_file
+    pack_glb_file(path)
 
 
 def export_usd(path: str | os.PathLike, objects: Iterable[bpy.types.Object], *, overwrite: bool = False,
@@ -162,7 +173,7 @@ def _supported(props: dict, options: dict) -> dict:
 
 
 def _export(fmt: str, module, op_name: str, path, exts: tuple, objects, options: dict, overwrite: bool,
-            context, keys_from_zero: bool = False) -> str:
+            context, keys_from_zero: bool = False, post=None) -> str:
     context = context or bpy.context
     path = os.path.abspath(os.fspath(path))
     objects = [ob for ob in objects if ob is not None]
@@ -190,6 +201,8 @@ def _export(fmt: str, module, op_name: str, path, exts: tuple, objects, options:
             raise ExportError(f"{fmt} export to '{path}' was cancelled by the exporter ({result})")
         if not os.path.isfile(tmp):
             raise ExportError(f"{fmt} export to '{path}' wrote no file")
+        if post is not None:
+            post(tmp)
         os.replace(tmp, path)
     except BaseException as exc:
         _remove_quietly(tmp)

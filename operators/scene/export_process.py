@@ -63,15 +63,16 @@ class ExportProcess:
     :meth:`cleanup` removes the temporary copy (both safe to call twice)."""
 
     def __init__(self, fmt: str, jobs: Sequence[tuple[Sequence, str]], overwrite: bool,
-                 fbx_extra: dict | None = None):
+                 fbx_extra: dict | None = None, games: Sequence[bool] | None = None):
         """``jobs``: (the tree's objects, the file to write) per tree, written in this order."""
         self.folder = tempfile.mkdtemp(prefix="tree_video_export_")
         blend = os.path.join(self.folder, "trees.blend")
         bpy.data.libraries.write(blend, {ob for objects, _ in jobs for ob in objects}, fake_user=True)
         args = json.dumps({"root": ROOT, "path": sys.path, "format": fmt, "overwrite": bool(overwrite),
                            "fbx_extra": dict(fbx_extra or {}),
-                           "jobs": [{"objects": [ob.name for ob in objects], "out": out}
-                                    for objects, out in jobs]})
+                           "jobs": [{"objects": [ob.name for ob in objects], "out": out,
+                                     "game": bool(games[k]) if games else False}
+                                    for k, (objects, out) in enumerate(jobs)]})
         self.log = open(os.path.join(self.folder, "log.txt"), "w+")
         self.proc = subprocess.Popen(
             [bpy.app.binary_path, "-b", "--factory-startup", blend, "--python-exit-code", "1",
@@ -119,7 +120,8 @@ class ExportProcess:
 
 
 def start(fmt: str, jobs: Sequence[tuple[Sequence, str]], overwrite: bool,
-          fbx_extra: dict | None = None) -> ExportProcess:
+          fbx_extra: dict | None = None, games: Sequence[bool] | None = None) -> ExportProcess:
     """Start exporting, as ``fmt`` ("FBX", "GLB", "USD"), each job's objects to its file, one after
-    another in one background Blender (``fbx_extra``: an engine preset's FBX options)."""
-    return ExportProcess(fmt, jobs, overwrite, fbx_extra)
+    another in one background Blender (``fbx_extra``: an engine preset's FBX options; ``games``: per
+    job, a game tree whose GLB is packed for engines)."""
+    return ExportProcess(fmt, jobs, overwrite, fbx_extra, games)

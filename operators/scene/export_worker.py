@@ -42,6 +42,8 @@ def main(args: dict) -> int:
         start = time.perf_counter()
         try:
             extra = {"extra": args["fbx_extra"]} if args["format"] == "FBX" and args.get("fbx_extra") else {}
+            if args["format"] == "GLB" and job.get("game"):
+                extra = {"game": True}
             writer(job["out"], objects, overwrite=bool(args.get("overwrite")), **extra)
         except (errors.InputError, export.ExportError) as exc:
             print(f"{ERROR_PREFIX}{exc}", flush=True)

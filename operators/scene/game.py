@@ -12,6 +12,8 @@ from ...core.asset.engine_files import engine_files
 from ...core.asset.game import GameSettings
 
 KEY = "_tree_video_engine_files"
+#: marks a tree built for a game engine: its GLB is written packed for engines
+GAME_KEY = "_tree_video_game"
 
 
 def game_settings(props) -> GameSettings:
@@ -32,6 +34,8 @@ def build_kwargs(game: GameSettings) -> dict:
 def keep_engine_files(built: dict, tree, game: GameSettings) -> int:
     """Make ``game``'s engine files of the built tree and keep them in its collection; returns how
     many (0: none asked for, nothing kept)."""
+    if game.is_game:
+        built["collection"][GAME_KEY] = True
     files = engine_files(tree, built["asset"], game)
     if files:
         built["collection"][KEY] = {name: data for name, data in files.items()}
@@ -60,3 +64,11 @@ def kept_paths(coll, path: str) -> list[str]:
     """Where Export writes ``coll``'s engine files when its file is ``path``."""
     stem = os.path.splitext(os.path.basename(path))[0]
     return [os.path.join(os.path.dirname(path), n) for n in kept_files(coll, stem)]
+
+
+def is_game_tree(coll) -> bool:
+    """Whether tree ``coll`` was built with game settings (:func:`keep_engine_files`)."""
+    try:
+        return bool(coll.get(GAME_KEY))
+    except ReferenceError:
+        return False

@@ -71,6 +71,8 @@ def write_outputs(tree: Tree3D, out_dir: str, wanted: dict, overwrite: bool = Fa
     for f in FORMATS:                       # the interchange files, in the registry's order
         if f.interchange and wanted.get(f.flag):
             extra = {"extra": fbx_options(game.engine)} if f.flag == "fbx" else {}
+            if f.flag == "gltf" and game.is_game:
+                extra = {"game": True}
             written[f.flag] = getattr(export, f.writer)(os.path.join(out_dir, f.file), objects, overwrite=overwrite,
                                                         **extra)
             report(f"[export] {written[f.flag]}")
