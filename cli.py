@@ -144,6 +144,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--collision", action="store_true", default=None,
                    help="collision capsules for the trunk and main limbs: meshes UCP_<tree>_NN in the FBX (Unreal's "
                         "convention) and collision.json (every capsule's ends and radius) beside the exports")
+    p.add_argument("--impostor", action="store_true", default=None,
+                   help="a hemi-octahedral impostor rendered in Blender (impostor_albedo.png, impostor_normal.png: "
+                        "8x8 views; impostor.json: layout, view directions, bounds) and a crossed-billboard card "
+                        "<tree>_LOD<k> as the last level of detail")
     p.add_argument("--bone-texture", action="store_true", default=None,
                    help="write the motion as a bone-animation texture beside the exports (bone_anim.exr: a row "
                         "a frame, each bone's head displacement and rotation; bone_anim.json: layout, bones, "
@@ -240,7 +244,7 @@ def _wanted(args) -> tuple[dict, list[str]]:
 
 def _describe_engine(engine: str) -> str:
     e = ENGINES[engine]
-    files = [n for n in ("pivot_painter", "bone_texture", "collision", "viewer") if e.get(n)]
+    files = [n for n in ("pivot_painter", "bone_texture", "collision", "impostor", "viewer") if e.get(n)]
     return (f"{'/'.join(e['formats'])}, {e['bones']} bones, {e['lods']} LOD(s), {e['loop_s']:g} s loop"
             + (f", {', '.join(files).replace('_', ' ')}" if files else ""))
 
@@ -252,11 +256,11 @@ def _apply_engine(args) -> None:
         raise InputError(f"--bones {args.bones}: give at least 1 (e.g. 64), or drop it for every bone")
     game = preset(args.engine or "", bones=args.bones, lods=args.lods, loop_s=args.loop,
                   pivot_painter=args.pivot_painter, bone_texture=args.bone_texture, collision=args.collision,
-                  viewer=args.viewer)
+                  viewer=args.viewer, impostor=args.impostor)
     args.bones = game.bones or None
     args.lods, args.loop = game.lods, game.loop_s
     args.pivot_painter, args.bone_texture = game.pivot_painter, game.bone_texture
-    args.collision, args.viewer = game.collision, game.viewer
+    args.collision, args.viewer, args.impostor = game.collision, game.viewer, game.impostor
     if args.engine and not any(_wanted(args)[0].values()):
         for flag in game.formats:
             setattr(args, flag, True)
@@ -266,6 +270,7 @@ def _game(args) -> GameSettings:
     """The game export's settings of the command line (after :func:`_apply_engine`)."""
     return GameSettings(bones=args.bones or 0, lods=args.lods, pivot_painter=args.pivot_painter,
                         bone_texture=args.bone_texture, collision=args.collision, viewer=args.viewer,
+                        impostor=args.impostor,
                         engine=args.engine or "", loop_s=args.loop)
 
 
@@ -279,7 +284,7 @@ def _check_loop(args) -> None:
     if not spec(GameSettings, "lods").ok(args.lods):
         raise InputError(f"--lods {args.lods}: give a number of levels, {spec(GameSettings, 'lods').describe()}, e.g. 3")
     for on, flag in ((args.lods > 1, "--lods"), (args.pivot_painter, "--pivot-painter"),
-                     (args.bone_texture, "--bone-texture"), (args.collision, "--collision"),
+                     (args.bone_texture, "--bone-texture"), (args.collision, "--collision"), (args.impostor, "--impostor"),
                      (args.viewer, "--viewer")):
         if on and not any(_wanted(args)[0].values()):
             raise InputError(f"{flag} comes with the Blender outputs; add one of "

@@ -212,6 +212,7 @@ class TREE_PT_game(_TreePanel, bpy.types.Panel):
         col.prop(props, "game_collision")
         col.prop(props, "game_pivot_painter")
         col.prop(props, "game_bone_texture")
+        col.prop(props, "game_impostor")
         col.label(text="For the next tree built", icon="INFO")
         col.label(text="Export writes its engine files", icon="BLANK1")
 

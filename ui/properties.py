@@ -62,7 +62,7 @@ def _core(prop: str, **kw) -> dict:
 
 def _engine_text(engine: str) -> str:
     e = ENGINES[engine]
-    files = [n.replace("_", " ") for n in ("pivot_painter", "bone_texture", "collision") if e.get(n)]
+    files = [n.replace("_", " ") for n in ("pivot_painter", "bone_texture", "collision", "impostor") if e.get(n)]
     return (f"{'/'.join(e['formats']).upper()}, {e['bones']} bones, {e['lods']} LOD(s), a {e['loop_s']:g} s loop"
             + (f", {', '.join(files)}" if files else ""))
 
@@ -74,6 +74,7 @@ def _apply_engine(self, context):
     g = preset(engine)
     self.game_bones, self.game_lods = int(g.bones), int(g.lods)
     self.game_collision, self.game_pivot_painter, self.game_bone_texture = g.collision, g.pivot_painter, g.bone_texture
+    self.game_impostor = g.impostor
     self.loop_seconds = float(g.loop_s)
     if g.formats:
         self.export_format = by_flag(g.formats[0]).key
@@ -354,6 +355,9 @@ class TreeVideoSettings(bpy.types.PropertyGroup):
     game_pivot_painter: bpy.props.BoolProperty(name="Pivot Painter 2", default=False,
                                                description="Unreal Pivot Painter 2 textures (element per branch in UV "
                                                            "channel 1) and the measured wind per level")
+    game_impostor: bpy.props.BoolProperty(name="Impostor", default=False,
+                                          description="A hemi-octahedral atlas of the tree (8x8 views, albedo and "
+                                                      "normals) and a crossed-billboard card as the last LOD")
     game_bone_texture: bpy.props.BoolProperty(name="Bone Texture", default=False,
                                               description="The motion as a bone-animation texture (EXR + JSON) for "
                                                           "vertex-shader skinning")

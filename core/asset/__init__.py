@@ -46,7 +46,7 @@ class TreeAsset:
 def tree_asset(tree: Tree3D, *, mesh: bool = True, leaves: bool = True, sides: int = 8,
                curliness: float | None = None, bark: str | None = None, leaf_image: str | None = None,
                every_key: bool = False, bone_budget: int | None = None, lods: int = 1,
-               pivots: bool = False, collision: bool = False) -> TreeAsset:
+               pivots: bool = False, collision: bool = False, as_levels: bool = False) -> TreeAsset:
     """Everything a writer copies of ``tree``: keys reduced within :data:`core.keys.KEY_TOLERANCE`
     (every frame with ``every_key``), the branch mesh with ``mesh``, the leaf bones and cards with
     ``leaves`` (when the tree has clusters), the look (``sides``, ``curliness``, ``bark`` and
@@ -54,7 +54,8 @@ def tree_asset(tree: Tree3D, *, mesh: bool = True, leaves: bool = True, sides: i
     rig cut to at most that many bones, its motion re-fitted (:func:`.budget.budget_rig`); ``lods``
     ≥ 2: that many levels of detail (:func:`.lod.tree_lods`) on the same rig; ``pivots``: the rig's
     Pivot Painter 2 elements (:func:`.pivot_painter.pivot_elements`); ``collision``: capsules of the
-    trunk and main limbs (:func:`.collision.capsules`, from the full rig)."""
+    trunk and main limbs (:func:`.collision.capsules`, from the full rig); ``as_levels``: ``lods``
+    levels even for one (LOD0 alone: a card LOD, the impostor's, follows it)."""
     look = tree_look(tree, sides, curliness, bark, leaf_image)
     timings = {}
     t = time.perf_counter()
@@ -71,7 +72,7 @@ def tree_asset(tree: Tree3D, *, mesh: bool = True, leaves: bool = True, sides: i
     leaf_mesh = leaf_arrays(tree, look, rig.n_branch) if leafy else None
     timings["leaf arrays"] = time.perf_counter() - t
     levels: list[Lod] = []
-    if lods > 1:
+    if lods > 1 or as_levels:
         t = time.perf_counter()
         levels = tree_lods(tree, rig.rest, look, branches, leaf_mesh, int(lods))
         timings["lods"] = time.perf_counter() - t

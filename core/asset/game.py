@@ -18,6 +18,8 @@ class GameSettings:
     ``UCP_<tree>_NN`` for the trunk and main limbs (:mod:`.collision`); ``pivot_painter`` Unreal
     Pivot Painter 2 textures (:mod:`.pivot_painter`); ``bone_texture`` the motion as a
     bone-animation texture (:mod:`.bone_texture`); ``viewer`` the web viewer page (:mod:`.web_viewer`);
+    ``impostor`` the hemi-octahedral atlas and its crossed-billboard card as the last LOD
+    (:mod:`.impostor`);
     ``engine`` the preset these came from ("": none; :data:`ENGINES`), which also sets the FBX's
     axes and units (:meth:`fbx_options`); ``loop_s`` and ``formats`` (batch flags, e.g. "fbx") what
     the preset asks for besides."""
@@ -28,6 +30,7 @@ class GameSettings:
     pivot_painter: bool = False
     bone_texture: bool = False
     viewer: bool = False
+    impostor: bool = False
     engine: str = param("", choices=("", "unreal", "unity", "godot", "web"), what="--engine")
     loop_s: float = 0.0
     formats: tuple[str, ...] = field(default_factory=tuple)
@@ -36,16 +39,18 @@ class GameSettings:
         """The engine files these settings write beside the exports (names in the output folder)."""
         from .bone_texture import FILES as BONE_FILES
         from .collision import FILE as COLLISION_FILE
+        from .impostor import FILES as IMPOSTOR_FILES
         from .pivot_painter import FILES as PP2_FILES
         from .web_viewer import FILES as VIEWER_FILES
         return ((list(PP2_FILES) if self.pivot_painter else []) + (list(BONE_FILES) if self.bone_texture else [])
-                + ([COLLISION_FILE] if self.collision else []) + (list(VIEWER_FILES) if self.viewer else []))
+                + ([COLLISION_FILE] if self.collision else []) + (list(IMPOSTOR_FILES) if self.impostor else [])
+                + (list(VIEWER_FILES) if self.viewer else []))
 
     @property
     def is_game(self) -> bool:
         """Anything asked for a game engine (then the GLB is packed for engines)."""
         return bool(self.engine or self.bones or self.lods > 1 or self.pivot_painter or self.bone_texture
-                    or self.collision or self.viewer)
+                    or self.collision or self.viewer or self.impostor)
 
     @property
     def bone_budget(self) -> int | None:
@@ -57,6 +62,7 @@ class GameSettings:
 #: names; Unity's LOD suffixes and FBX units; Godot's glTF import, its *_loop name and its own LODs;
 #: three.js for the web): formats, bones, LODs, loop seconds and the engine files
 ENGINES: dict[str, dict] = {
+    # (the impostor is left to the user: its 128 Workbench renders cost ~10 s a tree, a forest's minutes)
     "unreal": dict(formats=("fbx",), bones=64, lods=3, loop_s=10.0, collision=True, pivot_painter=True),
     "unity": dict(formats=("fbx",), bones=64, lods=3, loop_s=10.0, collision=False, bone_texture=True),
     # Godot generates its own LODs from a glTF (meshoptimizer) and loops an animation named *_loop

@@ -15,10 +15,12 @@ import bpy
 import numpy as np
 
 from ...core import bones
+from ...core.asset import impostor as imp_core
 from ...core.asset import tree_asset
 from ...core.errors import InputError
 from ...core.tree3d import Tree3D, last_key_frame
 from . import armature, branch_mesh, objects, timing, trees
+from . import impostor as imp_build
 from . import leaves as leaf_build  # build_tree has the parameters "leaves" and "materials"
 from . import lods as lod_build
 from . import materials as mats
@@ -33,7 +35,7 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
                leaf_image: str | None = None, curliness: float | None = None,
                bark: str | None = None, materials: dict | None = None, update_frame: bool = True,
                keep_view: bool = False, every_key: bool = False, bone_budget: int | None = None,
-               lods: int = 1, pivots: bool = False, collision: bool = False) -> dict:
+               lods: int = 1, pivots: bool = False, collision: bool = False, impostor: bool = False) -> dict:
     """Create the animated tree in a new collection ``collection_name`` under the scene collection
     (unselected, its rig active, at the scene's first frame; with ``keep_view`` the selection, the
     active object and the current frame stay as they were: a tree generated into a scene).
@@ -71,7 +73,10 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
     every mesh gets a second UV map ``"PivotPainter"``, each vertex at its Pivot Painter 2 element's
     pixel (:mod:`core.asset.pivot_painter`). ``collision``: capsule meshes ``UCP_<name>_NN`` for the
     trunk and main limbs (:mod:`core.asset.collision`; Unreal's FBX names; shown as wire, not
-    rendered, written to FBX only), returned as ``"collision"``. The core's :class:`core.asset.TreeAsset` is returned
+    rendered, written to FBX only), returned as ``"collision"``. ``impostor``: the hemi-octahedral
+    atlas rendered from LOD0 at rest (:mod:`.impostor`) and a crossed-billboard card as the last
+    level ``"<name>_LOD<k>"`` (LOD objects are built even for one level); its files' bytes
+    returned as ``"impostor"`` ({} without). The core's :class:`core.asset.TreeAsset` is returned
     as ``"asset"`` (what the engine files are written from).
 
     Returns ``{"collection", "armature", "mesh" (or None), "action", "keys" (the kept keys,
@@ -91,7 +96,8 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
     # everything Blender copies, computed in the core (rig, keys, meshes, look)
     asset = tree_asset(tree, mesh=mesh, leaves=leaves, sides=sides, curliness=curliness, bark=bark,
                        leaf_image=leaf_image, every_key=every_key, bone_budget=bone_budget, lods=lods,
-                       pivots=pivots, collision=collision)
+                       pivots=pivots, collision=collision,
+                       as_levels=impostor)
     timings = dict(asset.timings)
     # a loop's action is named so engines loop it (Godot loops an animation whose name ends in "loop")
     action_name = f"{collection_name}_loop" if tree.meta.get("loop") else f"{collection_name} Sway"
@@ -128,6 +134,7 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
 
         mesh_obj = material = leaf_obj = leaf_mat = None
         lod_objs: list = []
+        impostor_files: dict = {}
         t = time.perf_counter()
         if asset.branches is not None:
             material = (materials or {}).get("bark")
@@ -147,8 +154,19 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
             lod_objs = [lod_build.build_lod(lv, k, rig_data.names, rig, coll, collection_name, material, leaf_mat,
                                             created) for k, lv in enumerate(asset.lods)]
             mesh_obj = lod_objs[0]
-            lod_build.lod_group(rig, coll, collection_name, lod_objs, created)
+            group = lod_build.lod_group(rig, coll, collection_name, lod_objs, created)
             timings["lods"] = time.perf_counter() - t
+            if impostor:
+                t = time.perf_counter()
+                pts = np.concatenate([m.co for m in (asset.lods[0].branches, asset.lods[0].leaves) if m is not None])
+                layout = imp_core.layout_for(pts)
+                albedo, normal = imp_build.render_atlas(rig, [lod_objs[0]], layout)
+                root = rig_data.names[int(np.flatnonzero(rig_data.parent < 0)[0])]
+                card = imp_build.build_card(layout, albedo, rig, root, coll,
+                                            lod_build.lod_name(collection_name, len(lod_objs)), group, created)
+                lod_objs.append(card)
+                impostor_files = imp_build.impostor_files(layout, albedo, normal, collection_name)
+                timings["impostor"] = time.perf_counter() - t
         else:
             if asset.branches is not None:
                 t = time.perf_counter()
@@ -167,6 +185,8 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
                       for ob, lv in zip(lod_objs, asset.lods)]
             meshes += [(ob, m.bone) for ob, m in ((mesh_obj, asset.branches), (leaf_obj, asset.leaves))
                        if ob is not None and not lod_objs and m is not None]
+            root = int(np.flatnonzero(rig_data.parent < 0)[0])
+            meshes += [(ob, np.full(len(ob.data.vertices), root)) for ob in lod_objs[len(asset.lods):]]   # the card
             for ob, bone in meshes:
                 objects.add_vertex_uv(ob, "PivotPainter", pp.uv(bone))
 
@@ -211,6 +231,7 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
     timings["total"] = time.perf_counter() - t_total
     return {"collection": coll, "armature": rig, "mesh": mesh_obj, "action": action, "keys": rig_data.reduced,
             "budget": asset.budget, "lods": lod_objs, "asset": asset, "collision": caps,
+            "impostor": impostor_files,
             "material": material, "leaves": leaf_obj, "leaf_material": leaf_mat,
             "leaf_polygons": sum(lv.leaves.quads for lv in asset.lods[:1] if lv.leaves is not None) if lod_objs
             else tree.leaves.polygons if leaf_obj is not None else 0, "timings": timings}

@@ -22,13 +22,13 @@ def game_settings(props) -> GameSettings:
     engine = "" if props.game_engine == "NONE" else props.game_engine.lower()
     return GameSettings(bones=int(props.game_bones), lods=int(props.game_lods), collision=bool(props.game_collision),
                         pivot_painter=bool(props.game_pivot_painter), bone_texture=bool(props.game_bone_texture),
-                        engine=engine, loop_s=float(props.loop_seconds))
+                        impostor=bool(props.game_impostor), engine=engine, loop_s=float(props.loop_seconds))
 
 
 def build_kwargs(game: GameSettings) -> dict:
     """:func:`.build.build_tree`'s keywords for ``game``."""
     return {"bone_budget": game.bone_budget, "lods": int(game.lods), "pivots": bool(game.pivot_painter),
-            "collision": bool(game.collision)}
+            "collision": bool(game.collision), "impostor": bool(game.impostor)}
 
 
 def keep_engine_files(built: dict, tree, game: GameSettings) -> int:
@@ -37,6 +37,7 @@ def keep_engine_files(built: dict, tree, game: GameSettings) -> int:
     if game.is_game:
         built["collection"][GAME_KEY] = True
     files = engine_files(tree, built["asset"], game)
+    files.update(built.get("impostor") or {})            # rendered by Blender, not the core
     if files:
         built["collection"][KEY] = {name: data for name, data in files.items()}
     return len(files)

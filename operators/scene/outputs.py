@@ -61,7 +61,7 @@ def write_outputs(tree: Tree3D, out_dir: str, wanted: dict, overwrite: bool = Fa
         bpy.ops.wm.read_factory_settings(use_empty=True)
     context = bpy.context
     built = build_tree(context, tree, tree.name, replace=True, leaf_image=leaf_image, bone_budget=game.bone_budget,
-                       lods=game.lods, pivots=game.pivot_painter, collision=game.collision)
+                       lods=game.lods, pivots=game.pivot_painter, collision=game.collision, impostor=game.impostor)
     if built["budget"] is not None:
         report(f"[bones] {built['budget'].line()}")
     if built["lods"]:
@@ -78,6 +78,7 @@ def write_outputs(tree: Tree3D, out_dir: str, wanted: dict, overwrite: bool = Fa
             report(f"[export] {written[f.flag]}")
     asset = built["asset"]
     files = engine_files(tree, asset, game)
+    files.update(built["impostor"])
     if files:
         written["engine"] = write_files(out_dir, files)
         report(f"[engine files] {engine_line(asset, game)}: {', '.join(files)}")

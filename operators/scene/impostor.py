@@ -1,0 +1,170 @@
+"""The impostor rendered in Blender (issue 33, ``--impostor``; the layout is the core's,
+:mod:`core.asset.impostor`): every cell of the hemi-octahedral atlas a Workbench render of the tree
+at rest (LOD0) from its direction — albedo (the materials' texture colours, flat light, alpha the
+coverage) and normals (each vertex's rest normal in glTF axes as a colour attribute, raw view
+transform) — and the crossed-billboard card mesh ``<tree>_LOD<k>`` that shows two of its cells, the
+last level of detail.
+
+Rendered in a scene of its own (the tree's objects linked, the armature in its rest position), so
+the user's scene, frame and render settings are untouched.
+"""
+from __future__ import annotations
+
+import os
+import tempfile
+
+import bpy
+import numpy as np
+from mathutils import Matrix
+
+from ...core.asset.impostor import TO_GLTF, ImpostorLayout, card_mesh, grid_directions, view_basis
+from .objects import Created
+
+NORMAL_ATTR = "ImpostorNormal"
+
+
+def _render(scene, path: str) -> np.ndarray:
+    import cv2
+    scene.render.filepath = path
+    bpy.ops.render.render(write_still=True, scene=scene.name)
+    img = cv2.imread(path, cv2.IMREAD_UNCHANGED)
+    if img is None or img.ndim != 3 or img.shape[2] != 4:
+        raise RuntimeError(f"the impostor render '{path}' could not be read back")
+    return img[..., [2, 1, 0, 3]]
+
+
+def render_atlas(rig, meshes, layout: ImpostorLayout) -> tuple[np.ndarray, np.ndarray]:
+    """``(albedo, normal)`` atlases ``(S, S, 4)`` uint8 RGBA (row 0 the top) of ``meshes`` (the
+    tree's LOD0 objects) on ``rig`` at rest."""
+    scene = bpy.data.scenes.new(".Tree from Video impostor")
+    cam = bpy.data.objects.new(".impostor camera", bpy.data.cameras.new(".impostor camera"))
+    folder = tempfile.mkdtemp(prefix="tree_video_impostor_")
+    old_pose = rig.data.pose_position
+    added = []
+    try:
+        for ob in [rig, *meshes]:
+            scene.collection.objects.link(ob)
+        scene.collection.objects.link(cam)
+        scene.camera = cam
+        cam.data.type = "ORTHO"
+        cam.data.ortho_scale = 2.0 * layout.radius
+        cam.data.clip_start, cam.data.clip_end = 0.001, 8.0 * layout.radius + 1.0
+        r = scene.render
+        r.engine = "BLENDER_WORKBENCH"
+        r.film_transparent = True
+        r.resolution_x = r.resolution_y = layout.cell
+        r.resolution_percentage = 100
+        r.image_settings.file_format = "PNG"
+        r.image_settings.color_mode = "RGBA"
+        r.image_settings.color_depth = "8"
+        scene.display.shading.light = "FLAT"
+        rig.data.pose_position = "REST"
+        for ob in meshes:                             # rest normals in glTF axes, as colours
+            me = ob.data
+            n = np.empty(3 * len(me.vertices), np.float32)
+            me.vertices.foreach_get("normal", n)
+            attr = me.color_attributes.new(NORMAL_ATTR, "FLOAT_COLOR", "POINT")
+            added.append((me, attr.name, me.color_attributes.active_color_name))
+            col = np.ones((len(me.vertices), 4), np.float32)
+            col[:, :3] = 0.5 * (n.reshape(-1, 3) @ TO_GLTF.T + 1.0)
+            attr.data.foreach_set("color", col.ravel())
+        dirs = grid_directions(layout.grid)
+        S, c = layout.cell, layout.grid
+        albedo = np.zeros((layout.size, layout.size, 4), np.uint8)
+        normal = np.zeros_like(albedo)
+        for j in range(c):
+            for i in range(c):
+                forward, right, up = view_basis(dirs[j, i])
+                m = np.eye(4)
+                m[:3, 0], m[:3, 1], m[:3, 2] = right, up, -forward      # a camera looks down its -Z
+                m[:3, 3] = layout.centre - forward * 4.0 * layout.radius
+                cam.matrix_world = Matrix(m.tolist())
+                scene.display.shading.color_type = "TEXTURE"
+                scene.view_settings.view_transform = "Standard"
+                scene.display.render_aa = "8"
+                a = _render(scene, os.path.join(folder, "a.png"))
+                for me, name, _ in added:
+                    me.color_attributes.active_color_name = name
+                scene.display.shading.color_type = "VERTEX"
+                scene.view_settings.view_transform = "Raw"           # the attribute's values as they are
+                scene.display.render_aa = "OFF"                      # one surface a pixel: no averaged normals
+                nrm = _render(scene, os.path.join(folder, "n.png"))
+                v = nrm[..., :3].astype(np.float64) / 255.0 * 2.0 - 1.0
+                v /= np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-6)
+                nrm[..., :3] = np.round((v + 1.0) / 2.0 * 255.0).astype(np.uint8)
+                nrm[..., 3] = a[..., 3]                   # the albedo's cut-out leaves are the coverage
+                nrm[a[..., 3] == 0, :3] = 128
+                albedo[j * S:(j + 1) * S, i * S:(i + 1) * S] = a
+                normal[j * S:(j + 1) * S, i * S:(i + 1) * S] = nrm
+        return albedo, normal
+    finally:
+        rig.data.pose_position = old_pose
+        for me, name, active in added:
+            attr = me.color_attributes.get(name)
+            if attr is not None:
+                me.color_attributes.remove(attr)
+            if active and me.color_attributes.get(active) is not None:
+                me.color_attributes.active_color_name = active
+        bpy.data.scenes.remove(scene)
+        cam_data = cam.data
+        bpy.data.objects.remove(cam)
+        bpy.data.cameras.remove(cam_data)
+        for f in os.listdir(folder):
+            os.unlink(os.path.join(folder, f))
+        os.rmdir(folder)
+
+
+def build_card(layout: ImpostorLayout, albedo: np.ndarray, rig, root_bone: str, coll, name: str, parent,
+               created: Created):
+    """The crossed-billboard object ``name`` (two quads, :func:`core.asset.impostor.card_mesh`) with
+    a material showing the atlas (packed, alpha-tested), skinned to ``root_bone`` of ``rig``."""
+    from .materials import packed_image, principled_nodes
+    co, uv, quads = card_mesh(layout, float(rig.data.bones[root_bone].head_local[2]))
+    me = created.add(bpy.data.meshes, bpy.data.meshes.new(name))
+    me.vertices.add(len(co))
+    me.vertices.foreach_set("co", co.ravel())
+    me.loops.add(quads.size)
+    me.loops.foreach_set("vertex_index", quads.ravel())
+    me.polygons.add(len(quads))
+    me.polygons.foreach_set("loop_start", np.arange(0, quads.size, 4, dtype=np.int32))
+    me.polygons.foreach_set("loop_total", np.full(len(quads), 4, np.int32))
+    me.update(calc_edges=True)
+    me.uv_layers.new(name="UVMap").data.foreach_set("uv", uv[quads.ravel()].ravel())
+    rgba = albedo[::-1].astype(np.float32) / 255.0          # Blender's image rows run bottom-up
+    img = created.add(bpy.data.images, packed_image(f"{name} atlas", rgba, "sRGB", True))
+    mat = created.add(bpy.data.materials, bpy.data.materials.new(f"{name} Impostor"))
+    nt, out, bsdf = principled_nodes(mat)
+    tex = nt.nodes.new("ShaderNodeTexImage")
+    tex.image = img
+    clip = nt.nodes.new("ShaderNodeMath")
+    clip.operation = "ROUND"                                  # alpha-tested (glTF MASK)
+    nt.links.new(tex.outputs["Color"], bsdf.inputs["Base Color"])
+    nt.links.new(tex.outputs["Alpha"], clip.inputs[0])
+    nt.links.new(clip.outputs["Value"], bsdf.inputs["Alpha"])
+    nt.links.new(bsdf.outputs["BSDF"], out.inputs["Surface"])
+    mat.use_backface_culling = False
+    me.materials.append(mat)
+    ob = created.add(bpy.data.objects, bpy.data.objects.new(name, me))
+    coll.objects.link(ob)
+    ob.vertex_groups.new(name=root_bone).add(list(range(len(co))), 1.0, "REPLACE")
+    mod = ob.modifiers.new("Armature", "ARMATURE")
+    mod.object = rig
+    ob.parent = parent
+    ob.hide_render = True
+    return ob
+
+
+def impostor_files(layout: ImpostorLayout, albedo: np.ndarray, normal: np.ndarray, tree_name: str) -> dict[str, bytes]:
+    """``impostor_albedo.png``, ``impostor_normal.png`` and ``impostor.json`` as bytes."""
+    import cv2
+
+    from ...core.asset.impostor import FILES, impostor_doc
+    from ...core.fileio import json_bytes
+    out = {}
+    for name, img in zip(FILES[:2], (albedo, normal)):
+        ok, png = cv2.imencode(".png", img[..., [2, 1, 0, 3]])
+        if not ok:
+            raise RuntimeError(f"OpenCV could not encode {name}")
+        out[name] = png.tobytes()
+    out[FILES[2]] = json_bytes(impostor_doc(layout, tree_name))
+    return out
