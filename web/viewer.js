@@ -30,7 +30,7 @@ sun.position.set(3, 10, 6);
 scene.add(sun);
 
 let camera;
-const ortho = params.get('ortho');
+const ortho = params.get('ortho') === 'persp' ? null : params.get('ortho');
 
 function frameCamera(box) {
   const aspect = (size || innerWidth) / (size || innerHeight);
