@@ -101,3 +101,25 @@ def test_fbx_embeds_the_leaf_texture_and_reimports_with_it(leafy, tmp_path):
     images = [n.image for m in bpy.data.materials if m.node_tree is not None and "Leaf" in m.name
               for n in m.node_tree.nodes if n.type == "TEX_IMAGE" and n.image is not None]
     assert len(images) == 1 and images[0].size[0] >= 64 and images[0].packed_file is not None
+
+
+def test_a_game_tree_exports_to_usd_and_validates(tmp_path):
+    """A game tree (24 bones, LOD0..2 under their group, Pivot Painter's second UV set, capsules)
+    in USD: the levels are there, the capsules are not (FBX only), every validator finds no error."""
+    tree = api.generate("broad", 1, seed=4, n_frames=12, node_budget=80)[0]
+    built = api.build_tree(bpy.context, tree, "Game tree", bone_budget=24, lods=3, pivots=True, collision=True)
+    from tree_from_video.operators.scene import trees
+    objects = trees.tree_objects(built["collection"])
+    path = tmp_path / "game.usda"
+    if not export.has_usd():
+        with pytest.raises(InputError, match="built without USD"):
+            export.export_usd(path, objects)
+        return
+    export.export_usd(path, objects)
+    from pxr import Usd, UsdGeom
+    stage = Usd.Stage.Open(str(path))
+    meshes = [p.GetName() for p in stage.Traverse() if p.IsA(UsdGeom.Mesh)]
+    assert {"Game_tree_LOD0", "Game_tree_LOD1", "Game_tree_LOD2"} <= set(meshes), meshes
+    assert not [m for m in meshes if m.startswith("UCP_")]
+    from test_exports import _validate_usd
+    _validate_usd(stage)

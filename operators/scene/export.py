@@ -194,7 +194,7 @@ def _export(fmt: str, module, op_name: str, path, exts: tuple, objects, options:
     tmp = os.path.join(folder, f".{os.path.basename(path)}.{uuid.uuid4().hex[:8]}.tmp{ext}")
     try:
         with _own_scene(context, objects) as ctx, _keys_from_zero(objects, keys_from_zero), \
-                _frame_range(ctx.scene, objects), _baked_bark(objects):
+                _frame_range(ctx.scene, objects), _baked_bark(objects), _all_rendered(objects):
             result = _run_operator(module, op_name, filepath=tmp, check_existing=False,
                                    **_supported(props, options))
         if "FINISHED" not in result:
@@ -404,6 +404,23 @@ def _baked_bark(objects):
                 nt.links.new(a, b)
             for img in entry["images"]:
                 bpy.data.images.remove(img)
+
+
+@contextmanager
+def _all_rendered(objects):
+    """Every exported object renderable while exporting: a tree's lower LODs are hidden in renders
+    (the preview shows LOD0), and the USD exporter, evaluating for render, left them out."""
+    hidden = [ob for ob in objects if ob.hide_render]
+    for ob in hidden:
+        ob.hide_render = False
+    try:
+        yield
+    finally:
+        for ob in hidden:
+            try:
+                ob.hide_render = True
+            except ReferenceError:
+                pass
 
 
 @contextmanager
