@@ -11,8 +11,12 @@ generate/     reconstructed ``Tree3D``s → a species (``SpeciesModel``: Dirichl
               motion) → new ``Tree3D``s grown in any envelope, swaying by wind or audio; forests;
               and a crown's limbs grown where the video shows none (``limbs``).
 asset/        a ``Tree3D`` → what every writer copies (``TreeAsset``): the rig (bones, rest pose,
-              the motion's reduced keys), the branch and leaf meshes, the look, each node's role;
-              Blender's builders and the engine exports read it.
+              the motion's reduced keys; a bone budget's re-fitted rig), the branch and leaf meshes
+              and their levels of detail, the look, each node's role; and what game engines read
+              (``GameSettings`` and engine presets): Pivot Painter 2 elements and textures, the
+              bone-animation texture, collision capsules, the impostor's layout and card, a packed
+              GLB, the web viewer page. Blender's builders copy it; the engine files are written
+              from it.
 
 Shared by every stage, at this level: the tree model (``tree3d``: ``Tree3D``, ``LeafClusters``,
 and its ``meta`` keys in ``meta``), its bones (``bones``), topology helpers (``topology``),
