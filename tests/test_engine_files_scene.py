@@ -39,6 +39,15 @@ def read_accessor(doc, binary, index) -> np.ndarray:
     return np.lib.stride_tricks.as_strided(raw.view(dt), (a["count"], width), (stride, dt.itemsize)).copy()
 
 
+def read_values(doc, binary, index) -> np.ndarray:
+    """An accessor's values as floats, normalized integers scaled to [0, 1] (glTF 2.0 §3.11)."""
+    a = doc["accessors"][index]
+    v = read_accessor(doc, binary, index).astype(np.float64)
+    if a.get("normalized"):
+        v /= float(np.iinfo(_TYPES[a["componentType"]]).max)
+    return v
+
+
 def test_game_export_files(tmp_path):
     tree, = api.generate("broad", node_budget=90, n_frames=30, seed=61)
     game = GameSettings(bones=24, lods=2, pivot_painter=True, bone_texture=True, collision=True)
@@ -68,9 +77,9 @@ def test_game_export_files(tmp_path):
         for prim in mesh["primitives"]:
             attrs = prim["attributes"]
             assert "TEXCOORD_1" in attrs, f"{mesh['name']}: no UV channel 1"
-            uv1 = read_accessor(doc, binary, attrs["TEXCOORD_1"])
+            uv1 = read_values(doc, binary, attrs["TEXCOORD_1"])
             joints = read_accessor(doc, binary, attrs["JOINTS_0"])
-            weights = read_accessor(doc, binary, attrs["WEIGHTS_0"])
+            weights = read_values(doc, binary, attrs["WEIGHTS_0"])
             main = joints[np.arange(len(joints)), np.argmax(weights, axis=1)]
             uv_blender = np.stack([uv1[:, 0], 1.0 - uv1[:, 1]], axis=1)          # glTF's V runs down
             got = element_at_uv(uv_blender, W, H)

@@ -46,6 +46,12 @@ def test_levels_in_blender_and_in_the_exports(tmp_path):
     names = sorted(m["name"] for m in doc["meshes"])
     assert names == ["Game_LOD0", "Game_LOD1", "Game_LOD2"]
     assert len(doc["skins"]) == 1 and len(doc["skins"][0]["joints"]) == len(asset.rig.names)
+    # the leaves alpha-tested in the GLB (MASK), and the material as it was once the export is done
+    mats = {m["name"]: m for m in doc["materials"]}
+    assert mats["Game Leaf"]["alphaMode"] == "MASK" and mats["Game Leaf"].get("alphaCutoff", 0.5) == 0.5
+    leaf = bpy.data.materials["Game Leaf"]
+    assert not any(n.type == "MATH" for n in leaf.node_tree.nodes)
+    assert leaf.node_tree.nodes["Principled BSDF"].inputs["Alpha"].links[0].from_node.type == "TEX_IMAGE"
     fbx = read_fbx(export.export_fbx(tmp_path / "game.fbx", objects))
     objs_node = top(fbx, "Objects")
     groups = [n for n in child(objs_node, "NodeAttribute") if n["props"][2] == b"LodGroup"]

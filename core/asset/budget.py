@@ -25,7 +25,7 @@ frame (its :class:`BudgetReport`).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -52,7 +52,7 @@ class BudgetReport:
     of: int
     rms: float
     max: float
-    bone_of: np.ndarray | None = None
+    bone_of: np.ndarray | None = field(default=None, compare=False)
 
     def line(self) -> str:
         return (f"{self.bones} bones of {self.of}: vertex error RMS {100 * self.rms:.2f} %, "

@@ -106,7 +106,7 @@ def export_gltf(path: str | os.PathLike, objects: Iterable[bpy.types.Object], *,
     if game:
         options["export_image_format"] = "JPEG"
     return _export("glTF", bpy.ops.export_scene, "gltf", path, (".glb",), objects, options, overwrite, context,
-                   post=_pack_file if game else None)
+                   post=_pack_file if game else None, alpha_clip=True)
 
 
 def _pack_file(path: str) -> None:
@@ -173,7 +173,7 @@ def _supported(props: dict, options: dict) -> dict:
 
 
 def _export(fmt: str, module, op_name: str, path, exts: tuple, objects, options: dict, overwrite: bool,
-            context, keys_from_zero: bool = False, post=None) -> str:
+            context, keys_from_zero: bool = False, post=None, alpha_clip: bool = False) -> str:
     context = context or bpy.context
     path = os.path.abspath(os.fspath(path))
     objects = [ob for ob in objects if ob is not None]
@@ -194,7 +194,8 @@ def _export(fmt: str, module, op_name: str, path, exts: tuple, objects, options:
     tmp = os.path.join(folder, f".{os.path.basename(path)}.{uuid.uuid4().hex[:8]}.tmp{ext}")
     try:
         with _own_scene(context, objects) as ctx, _keys_from_zero(objects, keys_from_zero), \
-                _frame_range(ctx.scene, objects), _baked_bark(objects), _all_rendered(objects):
+                _frame_range(ctx.scene, objects), _baked_bark(objects), _all_rendered(objects), \
+                _alpha_clipped(objects, alpha_clip):
             result = _run_operator(module, op_name, filepath=tmp, check_existing=False,
                                    **_supported(props, options))
         if "FINISHED" not in result:
@@ -404,6 +405,35 @@ def _baked_bark(objects):
                 nt.links.new(a, b)
             for img in entry["images"]:
                 bpy.data.images.remove(img)
+
+
+@contextmanager
+def _alpha_clipped(objects, enabled: bool = True):
+    """While exporting glTF, a Math *Round* node on the Alpha link of every alpha-tested material
+    (:data:`.materials.ALPHA_CLIP_KEY`): the glTF exporter writes that as ``alphaMode`` MASK with
+    cutoff 0.5 (engines sort blended foliage wrongly); the FBX exporter, which finds the alpha
+    texture only on a direct link, keeps it. The links are put back afterwards."""
+    from .materials import ALPHA_CLIP_KEY
+    done = []
+    try:
+        for mat in (m for m in _materials(objects) if enabled and m.get(ALPHA_CLIP_KEY)):
+            nt = mat.node_tree
+            bsdf = next((n for n in nt.nodes if n.type == "BSDF_PRINCIPLED"), None)
+            if bsdf is None or not bsdf.inputs["Alpha"].links:
+                continue
+            link = bsdf.inputs["Alpha"].links[0]
+            src = link.from_socket
+            nt.links.remove(link)
+            node = nt.nodes.new("ShaderNodeMath")
+            node.operation = "ROUND"
+            nt.links.new(src, node.inputs[0])
+            nt.links.new(node.outputs["Value"], bsdf.inputs["Alpha"])
+            done.append((nt, node, src, bsdf))
+        yield
+    finally:
+        for nt, node, src, bsdf in reversed(done):
+            nt.nodes.remove(node)
+            nt.links.new(src, bsdf.inputs["Alpha"])
 
 
 @contextmanager

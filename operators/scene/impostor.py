@@ -118,7 +118,7 @@ def build_card(layout: ImpostorLayout, albedo: np.ndarray, rig, root_bone: str, 
                created: Created):
     """The crossed-billboard object ``name`` (two quads, :func:`core.asset.impostor.card_mesh`) with
     a material showing the atlas (packed, alpha-tested), skinned to ``root_bone`` of ``rig``."""
-    from .materials import packed_image, principled_nodes
+    from .materials import ALPHA_CLIP_KEY, packed_image, principled_nodes
     co, uv, quads = card_mesh(layout, float(rig.data.bones[root_bone].head_local[2]))
     me = created.add(bpy.data.meshes, bpy.data.meshes.new(name))
     me.vertices.add(len(co))
@@ -136,11 +136,9 @@ def build_card(layout: ImpostorLayout, albedo: np.ndarray, rig, root_bone: str, 
     nt, out, bsdf = principled_nodes(mat)
     tex = nt.nodes.new("ShaderNodeTexImage")
     tex.image = img
-    clip = nt.nodes.new("ShaderNodeMath")
-    clip.operation = "ROUND"                                  # alpha-tested (glTF MASK)
     nt.links.new(tex.outputs["Color"], bsdf.inputs["Base Color"])
-    nt.links.new(tex.outputs["Alpha"], clip.inputs[0])
-    nt.links.new(clip.outputs["Value"], bsdf.inputs["Alpha"])
+    nt.links.new(tex.outputs["Alpha"], bsdf.inputs["Alpha"])
+    mat[ALPHA_CLIP_KEY] = True                                # alpha-tested (glTF MASK)
     nt.links.new(bsdf.outputs["BSDF"], out.inputs["Surface"])
     mat.use_backface_culling = False
     me.materials.append(mat)

@@ -20,6 +20,10 @@ BARK_KEY = "tree_video_bark"
 BARK_COLOUR_KEY = "tree_video_bark_colour"
 
 
+#: a material whose Principled Alpha is alpha-tested at 0.5 (the glTF export writes it as MASK)
+ALPHA_CLIP_KEY = "tree_video_alpha_clip"
+
+
 def principled_nodes(mat):
     """``mat``'s node tree emptied (nodes switched on first on Blender 4.x; 5.x always has them),
     with a Material Output and a Principled BSDF: ``(node_tree, output, bsdf)``."""
@@ -144,7 +148,7 @@ def packed_image(name: str, rgba: np.ndarray, colorspace: str | None = None, alp
 def leaf_material(name: str, image_path: str | None = None, tint=(0.3, 0.5, 0.2),
                   colour=None) -> bpy.types.Material:
     """Leaf material: the leaf image (``image_path`` or procedural, packed; alpha cut-out at 0.5,
-    which glTF writes as ``alphaMode`` MASK)
+    which glTF writes as ``alphaMode`` MASK: :data:`ALPHA_CLIP_KEY`)
     multiplied by the mesh's ``Col`` colour attribute (the video's colour), Principled BSDF,
     two-sided; ``tint`` (sRGB, :func:`core.asset.look.leaf_tint`) colours the procedural leaf, ``colour`` (sRGB,
     :func:`leaf_colour`; None: ``tint``) the solid view (Viewport Display colour). The caller
@@ -180,13 +184,10 @@ def leaf_material(name: str, image_path: str | None = None, tint=(0.3, 0.5, 0.2)
         link(tex.outputs["Color"], sock["A_Color"])
         link(attr.outputs["Color"], sock["B_Color"])
         link(out_sock["Result_Color"], bsdf.inputs["Base Color"])
-        # alpha-tested, not blended: Round is the node the glTF exporter reads as alphaMode MASK
-        # (cutoff 0.5); engines sort blended foliage wrongly, and alpha-tested cards are the convention
-        clip = nt.nodes.new("ShaderNodeMath")
-        clip.operation = "ROUND"
-        clip.location = (-180, -160)
-        link(tex.outputs["Alpha"], clip.inputs[0])
-        link(clip.outputs["Value"], bsdf.inputs["Alpha"])
+        # alpha-tested, not blended: the glTF export puts a Round node on this link (alphaMode MASK,
+        # cutoff 0.5; export.py); a direct link is what the FBX exporter reads as the alpha texture
+        link(tex.outputs["Alpha"], bsdf.inputs["Alpha"])
+        mat[ALPHA_CLIP_KEY] = True
         bsdf.inputs["Roughness"].default_value = 0.6
         link(bsdf.outputs["BSDF"], out.inputs["Surface"])
         out.target = "ALL"                  # what the exporters read: a Principled BSDF on the output
