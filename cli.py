@@ -283,6 +283,8 @@ def _check_loop(args) -> None:
                          f"{', '.join('--' + f.flag for f in FORMATS)}")
     if not spec(GameSettings, "lods").ok(args.lods):
         raise InputError(f"--lods {args.lods}: give a number of levels, {spec(GameSettings, 'lods').describe()}, e.g. 3")
+    if args.viewer and not args.gltf:
+        raise InputError("--viewer plays tree.glb; add --gltf (or use --engine web)")
     for on, flag in ((args.lods > 1, "--lods"), (args.pivot_painter, "--pivot-painter"),
                      (args.bone_texture, "--bone-texture"), (args.collision, "--collision"), (args.impostor, "--impostor"),
                      (args.viewer, "--viewer")):

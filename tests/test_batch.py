@@ -92,6 +92,11 @@ def _bad_inputs(tmp):
         "bad levels": ([VIDEO, "--outline", OUTLINE, "--levels", "1"], "levels"),
         "bad scale": ([VIDEO, "--outline", OUTLINE, "--scale", "0"], "scale"),
         "unknown limb species": ([VIDEO, "--outline", OUTLINE, "--limbs", "grow", "--limb-species", "oak"], "species"),
+        "too many lods": ([VIDEO, "--outline", OUTLINE, "--gltf", "--lods", "9"], "--lods"),
+        "lods without outputs": ([VIDEO, "--outline", OUTLINE, "--lods", "3"], "--lods"),
+        "viewer without gltf": ([VIDEO, "--outline", OUTLINE, "--fbx", "--viewer"], "--gltf"),
+        "unknown engine": ([VIDEO, "--outline", OUTLINE, "--engine", "cryengine"], "engine"),
+        "zero bones": ([VIDEO, "--outline", OUTLINE, "--gltf", "--bones", "0"], "--bones"),
     }
 
 
@@ -99,7 +104,8 @@ BAD_CASES = [
     "missing video", "unreadable video", "zero-frame video", "missing outline", "outline not json",
     "outline empty", "outline degenerate", "outline outside", "outline mask blank", "out is a file",
     "out cannot be created", "generate out cannot be created", "unknown option", "bad frames", "bad levels", "bad scale",
-    "unknown limb species"]
+    "unknown limb species", "too many lods", "lods without outputs", "viewer without gltf", "unknown engine",
+    "zero bones"]
 
 
 @pytest.mark.parametrize("case", BAD_CASES)
