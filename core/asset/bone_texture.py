@@ -27,12 +27,11 @@ from .. import bones
 from ..fileio import json_bytes, write_files
 from ..rotations import make_continuous, matrix_to_quat, quat_to_matrix
 from ..tree3d import Tree3D
+from .axes import TO_GLTF
 from .budget import world_motion
 from .exr import exr_bytes
 from .rig import Rig
 
-#: Blender's axes → glTF's: (x, y, z) → (x, z, −y), a proper rotation
-TO_GLTF = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
 FILES = ("bone_anim.exr", "bone_anim.json")
 
 
@@ -108,10 +107,10 @@ def bone_texture(tree: Tree3D, rig: Rig) -> BoneTexture:
     return BoneTexture(px, doc)
 
 
-def bone_files(tex: BoneTexture, prefix: str = "") -> dict[str, bytes]:
-    """The file contents by name, ``prefix`` before each name (the JSON names its image so)."""
-    doc = dict(tex.doc, image=prefix + FILES[0])
-    return {prefix + FILES[0]: exr_bytes(tex.pixels), prefix + FILES[1]: json_bytes(doc)}
+def bone_files(tex: BoneTexture) -> dict[str, bytes]:
+    """The file contents by name (:func:`.engine_files.with_prefix` renames them, the JSON's
+    ``image`` too)."""
+    return {FILES[0]: exr_bytes(tex.pixels), FILES[1]: json_bytes(tex.doc)}
 
 
 def write_bone_texture(folder: str | os.PathLike, tex: BoneTexture) -> list[str]:

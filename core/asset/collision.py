@@ -19,7 +19,8 @@ import numpy as np
 from .. import bones
 from ..fileio import json_bytes, write_files
 from ..tree3d import Tree3D
-from .pivot_painter import TO_UNREAL, branch_elements, element_bases
+from .axes import TO_GLTF, TO_UNREAL
+from .pivot_painter import branch_elements, element_bases
 from .rig import Rig
 
 MIN_RADIUS_SHARE = 0.45
@@ -117,11 +118,10 @@ def capsule_mesh(c: Capsule, sides: int = 8, rings: int = 2) -> tuple[np.ndarray
 def collision_doc(tree_name: str, caps: list[Capsule]) -> dict:
     """``collision.json``: each capsule's name, ends and radius in metres (Blender and glTF axes)
     and centimetres (Unreal axes)."""
-    to_gltf = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
     items = []
     for k, c in enumerate(caps):
         items.append({"name": capsule_name(tree_name, k), "level": c.level, "radius_m": round(c.radius, 5),
-                      "a_m": np.round(c.a @ to_gltf.T, 5).tolist(), "b_m": np.round(c.b @ to_gltf.T, 5).tolist(),
+                      "a_m": np.round(c.a @ TO_GLTF.T, 5).tolist(), "b_m": np.round(c.b @ TO_GLTF.T, 5).tolist(),
                       "radius_cm": round(100 * c.radius, 3), "a_cm": np.round(c.a @ TO_UNREAL.T, 3).tolist(),
                       "b_cm": np.round(c.b @ TO_UNREAL.T, 3).tolist()})
     return {"format": "tree_from_video.collision", "version": 1, "tree": tree_name, "capsules": items,

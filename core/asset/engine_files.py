@@ -1,9 +1,12 @@
 """The engine files of a game tree in one place (issue 33): Pivot Painter 2's textures and JSON, the
 bone-animation texture and its JSON, the collision capsules' JSON, as ``{file name: bytes}`` the
 batch writes into its output folder and the panel keeps in the tree's collection until Export
-writes them beside the tree's file (each name prefixed with the file's stem there)."""
+writes them beside the tree's file (each name prefixed with the file's stem there: :func:`with_prefix`)."""
 from __future__ import annotations
 
+import json
+
+from ..fileio import json_bytes
 from ..tree3d import Tree3D
 from . import TreeAsset
 from .bone_texture import bone_files, bone_texture
@@ -12,17 +15,30 @@ from .game import GameSettings
 from .pivot_painter import pivot_files
 
 
-def engine_files(tree: Tree3D, asset: TreeAsset, game: GameSettings, prefix: str = "") -> dict[str, bytes]:
+def engine_files(tree: Tree3D, asset: TreeAsset, game: GameSettings) -> dict[str, bytes]:
     """What ``game`` asks for of ``asset`` (made from ``tree`` with ``pivots`` and ``collision`` as
-    ``game`` says), ``prefix`` before each file name."""
+    ``game`` says), by file name."""
     out: dict[str, bytes] = {}
     if game.pivot_painter:
         assert asset.pivots is not None, "the asset was made without its Pivot Painter elements"
-        out.update({prefix + k: v for k, v in pivot_files(asset.pivots).items()})
+        out.update(pivot_files(asset.pivots))
     if game.bone_texture:
-        out.update(bone_files(bone_texture(tree, asset.rig), prefix))
+        out.update(bone_files(bone_texture(tree, asset.rig)))
     if game.collision:
-        out.update({prefix + k: v for k, v in collision_files(tree.name, asset.capsules).items()})
+        out.update(collision_files(tree.name, asset.capsules))
+    return out
+
+
+def with_prefix(files: dict[str, bytes], prefix: str) -> dict[str, bytes]:
+    """``files`` each named ``prefix + name``; a JSON whose ``image`` names one of them names the
+    renamed file (the bone texture's sidecar)."""
+    out = {}
+    for name, data in files.items():
+        if name.endswith(".json"):
+            doc = json.loads(data)
+            if doc.get("image") in files:
+                data = json_bytes(dict(doc, image=prefix + doc["image"]))
+        out[prefix + name] = data
     return out
 
 

@@ -20,8 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-#: Blender (x, y, z) → glTF (x, z, −y), and back
-TO_GLTF = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
+from .axes import TO_GLTF
+
 FILES = ("impostor_albedo.png", "impostor_normal.png", "impostor.json")
 
 

@@ -37,11 +37,10 @@ from .. import bones
 from ..fileio import json_bytes, write_files
 from ..rotations import quat_conj, quat_log, quat_mul
 from ..tree3d import Tree3D
+from .axes import TO_UNREAL
 from .exr import exr_bytes
 from .rig import Rig
 
-#: Blender metres → Unreal centimetres, (x, y, z) → (x, −y, z)
-TO_UNREAL = np.diag([100.0, -100.0, 100.0])
 LEVELS = 4
 MAX_ELEMENTS = 30000
 FILES = ("pivot_pos_index.exr", "xaxis_extent.png", "pivot_painter.json")

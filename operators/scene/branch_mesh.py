@@ -7,21 +7,13 @@ import numpy as np
 
 from ...core.asset.look import mesh_params as mesh_params  # noqa: PLC0414  (re-exported for scripts)
 from ...core.asset.meshes import BranchMesh
-from .objects import Created, weight_by_bone
+from .objects import Created, new_mesh, weight_by_bone
 
 
 def build_mesh(mesh: BranchMesh, names: list[str], rig, coll, name: str, material, created: Created):
     """The skinned branch mesh object, parented to ``rig``: one vertex group per bone of
     ``names`` holding its rings (weight 1), bulk-filled by ``foreach_set``."""
-    me = created.add(bpy.data.meshes, bpy.data.meshes.new(name))
-    me.vertices.add(len(mesh.co))
-    me.vertices.foreach_set("co", mesh.co.astype(np.float32).ravel())
-    me.loops.add(len(mesh.loop_vert))
-    me.loops.foreach_set("vertex_index", mesh.loop_vert.astype(np.int32))
-    me.polygons.add(len(mesh.loop_start))
-    me.polygons.foreach_set("loop_start", mesh.loop_start.astype(np.int32))
-    me.polygons.foreach_set("loop_total", mesh.loop_total.astype(np.int32))
-    me.update(calc_edges=True)
+    me = new_mesh(name, mesh.co, mesh.loop_vert, mesh.loop_total, created)    # polygons in loop order
     me.polygons.foreach_set("use_smooth", mesh.smooth)
     uv = me.uv_layers.new(name="UVMap")
     uv.data.foreach_set("uv", mesh.uv.astype(np.float32).ravel())

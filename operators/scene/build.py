@@ -133,6 +133,7 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
         timing.fit_scene_timing(scene, tree.fps, last_key_frame(tree), first=not trees.scene_trees(scene, exclude=coll))
 
         mesh_obj = material = leaf_obj = leaf_mat = None
+        root = int(np.flatnonzero(rig_data.parent < 0)[0])       # the root bone (a card, its PP2 element)
         lod_objs: list = []
         impostor_files: dict = {}
         t = time.perf_counter()
@@ -161,8 +162,7 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
                 pts = np.concatenate([m.co for m in (asset.lods[0].branches, asset.lods[0].leaves) if m is not None])
                 layout = imp_core.layout_for(pts)
                 albedo, normal = imp_build.render_atlas(rig, [lod_objs[0]], layout)
-                root = rig_data.names[int(np.flatnonzero(rig_data.parent < 0)[0])]
-                card = imp_build.build_card(layout, albedo, rig, root, coll,
+                card = imp_build.build_card(layout, albedo, rig, rig_data.names[root], coll,
                                             lod_build.lod_name(collection_name, len(lod_objs)), group, created)
                 lod_objs.append(card)
                 impostor_files = imp_build.impostor_files(layout, albedo, normal, collection_name)
@@ -185,7 +185,6 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
                       for ob, lv in zip(lod_objs, asset.lods)]
             meshes += [(ob, m.bone) for ob, m in ((mesh_obj, asset.branches), (leaf_obj, asset.leaves))
                        if ob is not None and not lod_objs and m is not None]
-            root = int(np.flatnonzero(rig_data.parent < 0)[0])
             meshes += [(ob, np.full(len(ob.data.vertices), root)) for ob in lod_objs[len(asset.lods):]]   # the card
             for ob, bone in meshes:
                 objects.add_vertex_uv(ob, "PivotPainter", pp.uv(bone))

@@ -5,10 +5,9 @@
 ``<file stem>_<name>`` (saved with the .blend, removed with the tree)."""
 from __future__ import annotations
 
-import json
 import os
 
-from ...core.asset.engine_files import engine_files
+from ...core.asset.engine_files import engine_files, with_prefix
 from ...core.asset.game import GameSettings
 
 KEY = "_tree_video_engine_files"
@@ -31,13 +30,20 @@ def build_kwargs(game: GameSettings) -> dict:
             "collision": bool(game.collision), "impostor": bool(game.impostor)}
 
 
+def built_engine_files(built: dict, tree, game: GameSettings) -> dict[str, bytes]:
+    """``game``'s engine files of a tree :func:`.build.build_tree` built: the core's, and the
+    impostor's that Blender rendered, by file name."""
+    files = engine_files(tree, built["asset"], game)
+    files.update(built.get("impostor") or {})
+    return files
+
+
 def keep_engine_files(built: dict, tree, game: GameSettings) -> int:
     """Make ``game``'s engine files of the built tree and keep them in its collection; returns how
     many (0: none asked for, nothing kept)."""
     if game.is_game:
         built["collection"][GAME_KEY] = True
-    files = engine_files(tree, built["asset"], game)
-    files.update(built.get("impostor") or {})            # rendered by Blender, not the core
+    files = built_engine_files(built, tree, game)
     if files:
         built["collection"][KEY] = {name: data for name, data in files.items()}
     return len(files)
@@ -47,24 +53,15 @@ def kept_files(coll, stem: str) -> dict[str, bytes]:
     """The engine files kept with tree ``coll`` as they are written beside ``<stem>.<ext>``:
     ``{"<stem>_<name>": bytes}`` (a bone texture's JSON names its image so)."""
     kept = coll.get(KEY) if coll is not None else None
-    if not kept:
-        return {}
-    out = {}
-    for name, data in kept.items():
-        data = bytes(data)
-        if name.endswith(".json"):
-            doc = json.loads(data)
-            if "image" in doc:
-                doc["image"] = f"{stem}_{doc['image']}"
-                data = (json.dumps(doc, indent=1) + "\n").encode()
-        out[f"{stem}_{name}"] = data
-    return out
+    return with_prefix({name: bytes(data) for name, data in kept.items()}, f"{stem}_") if kept else {}
 
 
 def kept_paths(coll, path: str) -> list[str]:
-    """Where Export writes ``coll``'s engine files when its file is ``path``."""
+    """Where Export writes ``coll``'s engine files when its file is ``path`` (names only: the panel
+    asks on every redraw)."""
+    kept = coll.get(KEY) if coll is not None else None
     stem = os.path.splitext(os.path.basename(path))[0]
-    return [os.path.join(os.path.dirname(path), n) for n in kept_files(coll, stem)]
+    return [os.path.join(os.path.dirname(path), f"{stem}_{name}") for name in (kept or {}).keys()]
 
 
 def is_game_tree(coll) -> bool:

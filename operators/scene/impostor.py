@@ -17,8 +17,9 @@ import bpy
 import numpy as np
 from mathutils import Matrix
 
-from ...core.asset.impostor import TO_GLTF, ImpostorLayout, card_mesh, grid_directions, view_basis
-from .objects import Created
+from ...core.asset.axes import TO_GLTF
+from ...core.asset.impostor import ImpostorLayout, card_mesh, grid_directions, view_basis
+from .objects import Created, new_mesh
 
 NORMAL_ATTR = "ImpostorNormal"
 
@@ -120,15 +121,7 @@ def build_card(layout: ImpostorLayout, albedo: np.ndarray, rig, root_bone: str, 
     a material showing the atlas (packed, alpha-tested), skinned to ``root_bone`` of ``rig``."""
     from .materials import ALPHA_CLIP_KEY, packed_image, principled_nodes
     co, uv, quads = card_mesh(layout, float(rig.data.bones[root_bone].head_local[2]))
-    me = created.add(bpy.data.meshes, bpy.data.meshes.new(name))
-    me.vertices.add(len(co))
-    me.vertices.foreach_set("co", co.ravel())
-    me.loops.add(quads.size)
-    me.loops.foreach_set("vertex_index", quads.ravel())
-    me.polygons.add(len(quads))
-    me.polygons.foreach_set("loop_start", np.arange(0, quads.size, 4, dtype=np.int32))
-    me.polygons.foreach_set("loop_total", np.full(len(quads), 4, np.int32))
-    me.update(calc_edges=True)
+    me = new_mesh(name, co, quads.ravel(), np.full(len(quads), 4), created)
     me.uv_layers.new(name="UVMap").data.foreach_set("uv", uv[quads.ravel()].ravel())
     rgba = albedo[::-1].astype(np.float32) / 255.0          # Blender's image rows run bottom-up
     img = created.add(bpy.data.images, packed_image(f"{name} atlas", rgba, "sRGB", True))

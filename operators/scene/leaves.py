@@ -17,7 +17,7 @@ from ...core.asset.meshes import LeafFlap, LeafMesh
 from ...core.asset.rig import LeafKeys
 from ...core.asset.rig import leaf_bone_names as leaf_bone_names  # noqa: PLC0414  (re-exported for scripts)
 from . import action_api
-from .objects import weight_by_bone
+from .objects import new_mesh, weight_by_bone
 
 #: the flap shape keys' names (USD-safe), as the asset names them
 FLAP_KEYS = LeafFlap.names
@@ -43,16 +43,7 @@ def build_leaf_mesh(mesh: LeafMesh, rig, coll, name: str, names: list[str], mate
     weighted 1.0 to its leaf bone (``names[mesh.bone]``); Armature modifier, parented to ``rig``,
     the flap's shape keys. ``created`` collects the data-blocks for rollback."""
     V = len(mesh.co)
-    me = created.add(bpy.data.meshes, bpy.data.meshes.new(name))
-    me.vertices.add(V)
-    me.vertices.foreach_set("co", mesh.co.astype(np.float32).ravel())
-    me.loops.add(V)
-    me.loops.foreach_set("vertex_index", np.arange(V, dtype=np.int32))
-    Q = mesh.quads
-    me.polygons.add(Q)
-    me.polygons.foreach_set("loop_start", np.arange(0, 4 * Q, 4, dtype=np.int32))
-    me.polygons.foreach_set("loop_total", np.full(Q, 4, np.int32))
-    me.update(calc_edges=True)
+    me = new_mesh(name, mesh.co, np.arange(V), np.full(mesh.quads, 4), created)
     uv = me.uv_layers.new(name="UVMap")
     uv.data.foreach_set("uv", mesh.uv.astype(np.float32).ravel())
     col = me.color_attributes.new("Col", "BYTE_COLOR", "POINT")

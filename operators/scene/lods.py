@@ -12,7 +12,7 @@ import numpy as np
 from ...core.asset.collision import Capsule, capsule_mesh, capsule_name
 from ...core.asset.lod import Lod
 from .leaves import add_leaf_flap
-from .objects import Created, weight_by_bone
+from .objects import Created, new_mesh, weight_by_bone
 
 
 def lod_name(tree: str, level: int) -> str:
@@ -48,17 +48,7 @@ def build_lod(lod: Lod, level: int, names: list[str], rig, coll, tree: str, bark
         bone.append(lv.bone)
         mat_index.append(np.full(lv.quads, 1 if b is not None else 0, np.int32))
     CO = np.concatenate(co).astype(np.float32)
-    T = np.concatenate(totals).astype(np.int32)
-    me = created.add(bpy.data.meshes, bpy.data.meshes.new(name))
-    me.vertices.add(len(CO))
-    me.vertices.foreach_set("co", CO.ravel())
-    LV = np.concatenate(loop_vert).astype(np.int32)
-    me.loops.add(len(LV))
-    me.loops.foreach_set("vertex_index", LV)
-    me.polygons.add(len(T))
-    me.polygons.foreach_set("loop_start", np.concatenate([[0], np.cumsum(T)[:-1]]).astype(np.int32))
-    me.polygons.foreach_set("loop_total", T)
-    me.update(calc_edges=True)
+    me = new_mesh(name, CO, np.concatenate(loop_vert), np.concatenate(totals), created)
     me.polygons.foreach_set("use_smooth", np.concatenate(smooth))
     me.polygons.foreach_set("material_index", np.concatenate(mat_index))
     layer = me.uv_layers.new(name="UVMap")
@@ -119,16 +109,7 @@ def build_capsule(c: Capsule, k: int, rig, coll, tree: str, created: Created):
     """The capsule mesh ``UCP_<tree>_NN`` (Unreal fits a capsule to it on import), child of ``rig``
     at rest, drawn as wire and not rendered."""
     name = capsule_name(tree, k)
-    co, loop_vert, totals = capsule_mesh(c)
-    me = created.add(bpy.data.meshes, bpy.data.meshes.new(name))
-    me.vertices.add(len(co))
-    me.vertices.foreach_set("co", co.astype(np.float32).ravel())
-    me.loops.add(len(loop_vert))
-    me.loops.foreach_set("vertex_index", loop_vert.astype(np.int32))
-    me.polygons.add(len(totals))
-    me.polygons.foreach_set("loop_start", np.concatenate([[0], np.cumsum(totals)[:-1]]).astype(np.int32))
-    me.polygons.foreach_set("loop_total", totals.astype(np.int32))
-    me.update(calc_edges=True)
+    me = new_mesh(name, *capsule_mesh(c), created)
     ob = created.add(bpy.data.objects, bpy.data.objects.new(name, me))
     ob[COLLISION_KEY] = True
     coll.objects.link(ob)

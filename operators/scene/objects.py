@@ -121,6 +121,23 @@ def unique_collection_name(base: str) -> str:
     return name
 
 
+def new_mesh(name: str, co: np.ndarray, loop_vert: np.ndarray, loop_total: np.ndarray, created: Created):
+    """A mesh ``name`` of vertices ``co (V, 3)`` metres and polygons given as their corners
+    ``loop_vert (L,)`` in order, ``loop_total (P,)`` corners each, bulk-filled by ``foreach_set``,
+    its edges computed; ``created`` collects it for rollback."""
+    totals = np.asarray(loop_total, np.int32)
+    me = created.add(bpy.data.meshes, bpy.data.meshes.new(name))
+    me.vertices.add(len(co))
+    me.vertices.foreach_set("co", np.asarray(co, np.float32).ravel())
+    me.loops.add(len(loop_vert))
+    me.loops.foreach_set("vertex_index", np.asarray(loop_vert, np.int32))
+    me.polygons.add(len(totals))
+    me.polygons.foreach_set("loop_start", np.concatenate([[0], np.cumsum(totals)[:-1]]).astype(np.int32))
+    me.polygons.foreach_set("loop_total", totals)
+    me.update(calc_edges=True)
+    return me
+
+
 def add_vertex_uv(ob, name: str, uv: np.ndarray) -> None:
     """A UV map ``name`` on ``ob``'s mesh holding ``uv (V, 2)`` per vertex (every loop of a vertex
     the same), appended after the existing ones (the second map is glTF's TEXCOORD_1, FBX's UV

@@ -12,7 +12,7 @@ import tempfile
 import bpy
 import numpy as np
 
-from ...core.asset.engine_files import engine_files, engine_line
+from ...core.asset.engine_files import engine_line
 from ...core.asset.game import GameSettings, fbx_options
 from ...core.asset.web_viewer import check_viewer_sources, write_viewer
 from ...core.errors import InputError
@@ -22,6 +22,7 @@ from ...core.loop import maybe_loop
 from ...core.tree3d import Tree3D
 from . import export, trees
 from .build import build_tree
+from .game import build_kwargs, built_engine_files
 
 
 def wanted_files(out_dir: str, wanted: dict) -> list[str]:
@@ -60,8 +61,7 @@ def write_outputs(tree: Tree3D, out_dir: str, wanted: dict, overwrite: bool = Fa
     if fresh_scene:
         bpy.ops.wm.read_factory_settings(use_empty=True)
     context = bpy.context
-    built = build_tree(context, tree, tree.name, replace=True, leaf_image=leaf_image, bone_budget=game.bone_budget,
-                       lods=game.lods, pivots=game.pivot_painter, collision=game.collision, impostor=game.impostor)
+    built = build_tree(context, tree, tree.name, replace=True, leaf_image=leaf_image, **build_kwargs(game))
     if built["budget"] is not None:
         report(f"[bones] {built['budget'].line()}")
     if built["lods"]:
@@ -77,8 +77,7 @@ def write_outputs(tree: Tree3D, out_dir: str, wanted: dict, overwrite: bool = Fa
                                                         **extra)
             report(f"[export] {written[f.flag]}")
     asset = built["asset"]
-    files = engine_files(tree, asset, game)
-    files.update(built["impostor"])
+    files = built_engine_files(built, tree, game)
     if files:
         written["engine"] = write_files(out_dir, files)
         report(f"[engine files] {engine_line(asset, game)}: {', '.join(files)}")
