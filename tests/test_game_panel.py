@@ -53,6 +53,8 @@ def test_an_engine_preset_builds_and_exports_a_game_tree(addon, tmp_path):
                               "oak_bone_anim.exr", "oak_bone_anim.json", "oak_collision.json"])
     doc = json.load(open(tmp_path / "oak_bone_anim.json"))
     assert doc["image"] == "oak_bone_anim.exr" and doc["loop"] and len(doc["bones"]) == len(rig.data.bones)
+    pp2 = json.load(open(tmp_path / "oak_pivot_painter.json"))          # its textures by their written names
+    assert pp2["files"] == ["oak_pivot_pos_index.exr", "oak_xaxis_extent.png"]
     # a second export refuses to overwrite the engine files too, naming one
     (tmp_path / "oak.fbx").unlink()
     with pytest.raises(AssertionError, match="oak_"):

@@ -30,14 +30,23 @@ def engine_files(tree: Tree3D, asset: TreeAsset, game: GameSettings) -> dict[str
 
 
 def with_prefix(files: dict[str, bytes], prefix: str) -> dict[str, bytes]:
-    """``files`` each named ``prefix + name``; a JSON whose ``image`` names one of them names the
-    renamed file (the bone texture's sidecar)."""
+    """``files`` each named ``prefix + name``; a JSON naming one of them (the bone texture's
+    ``image``, Pivot Painter's and the impostor's ``files``) names the renamed file."""
+    def renamed(v):
+        if isinstance(v, str):
+            return prefix + v if v in files else v
+        if isinstance(v, list):
+            return [renamed(x) for x in v]
+        if isinstance(v, dict):
+            return {k: renamed(x) for k, x in v.items()}
+        return v
     out = {}
     for name, data in files.items():
         if name.endswith(".json"):
             doc = json.loads(data)
-            if doc.get("image") in files:
-                data = json_bytes(dict(doc, image=prefix + doc["image"]))
+            new = {k: renamed(v) if k in ("image", "files") else v for k, v in doc.items()}
+            if new != doc:
+                data = json_bytes(new)
         out[prefix + name] = data
     return out
 
