@@ -1,9 +1,10 @@
 """A bone budget (core/asset/budget.py, issue 33): the rig cut to N bones with its motion re-fitted.
 On every sample's true motion (held-out seed 2; branch tubes of the true radii, no video) the
-vertices' error against the full rig at 64 bones stays within RMS 1 % and max 3 % of the height,
-and shrinks as the budget grows; the reduced rig, posed the way Blender composes pose bones,
-puts every vertex where the fit put it; each vertex keeps one influence. Kabsch's equation is
-checked on a hand case."""
+vertices' error against the full rig at 64 bones stays within RMS 0.5 % and max 3 % of the height
+(two storm conifers held at their measured gaps), and shrinks as the budget grows; the reduced rig,
+posed the way Blender composes pose bones, puts every vertex where the fit put it; each vertex
+keeps one influence. Kabsch's equation and the closed-form error the greedy split ranks by are
+checked on hand cases."""
 import numpy as np
 import pytest
 import report
@@ -16,11 +17,17 @@ from tree_from_video.core.rotations import quat_exp, quat_rotate, quat_to_matrix
 from tree_from_video.sample_videos import synth_tree
 
 BUDGETS = (16, 32, 64, 128)
-RMS_64, MAX_64 = 0.01, 0.03
-#: variant -> (RMS, max) at 64 bones, measured, where the bar is not met yet: conifers' and palms'
-#: long bending chains (527 and 105 bones) made rigid in groups; the test holds them there
-GAPS: dict[str, tuple[float, float]] = {"conifer_storm": (0.0072, 0.0631), "tiny": (0.0178, 0.1517),
-                                        "palm": (0.0026, 0.0318)}
+#: the issue's bar at 64 bones (RMS ≤ 1 %, max ≤ 3 % of the height), its RMS raised to what the
+#: greedy split measures on 19 of the 21 variants at seed 2 (≤ 0.23 %) and on a reconstruction
+#: with its leaves (0.30 %); the max stays: the leaves' flutter, which rigid groups drop, leaves
+#: 2.7 % on the reconstruction (the variants' trees: ≤ 2.06 %)
+RMS_64, MAX_64 = 0.005, 0.03
+#: variant -> (RMS, max) at 64 bones, measured, where the bar is not met: conifers of ~50 side
+#: branches of 9 bones each, bending in a storm (sway ×5; the 160×120 conifer ×7) — each branch
+#: keeps one rigid bone and its own bend is the error (6–7 % at the tips of a dozen branches of the
+#: 160×120 one; 4.6 % still at 128 bones; blending four bones per vertex moved the max by nothing).
+#: The test holds them there.
+GAPS: dict[str, tuple[float, float]] = {"conifer_storm": (0.0059, 0.0316), "tiny": (0.0136, 0.0708)}
 
 
 def _pose_world(rig) -> np.ndarray:
@@ -133,3 +140,21 @@ def test_a_reconstructions_leaves_join_their_branches(tmp_path):
     assert asset.budget.rms <= RMS_64 and asset.budget.max <= MAX_64, asset.budget.line()
     report.add("bone budget: vertex error against the full rig (tests/test_budget.py)",
                [f"reconstructed flutter (leaves) {asset.budget.line()}"])
+
+
+def test_the_closed_form_error_is_what_kabsch_leaves():
+    """``rigid_sse`` from a point set's sums equals the squared residual of the Kabsch fit, also
+    when the best orthogonal map would be a reflection (a mirrored set: ``det H < 0``)."""
+    rng = np.random.default_rng(5)
+    P = rng.normal(size=(40, 3))
+    F = 3
+    X = np.empty((F, 40, 3))
+    X[0] = P @ quat_to_matrix(quat_exp(np.array([0.2, -0.4, 0.1]))).T + 1.5 + 0.05 * rng.normal(size=(40, 3))
+    X[1] = P * np.array([1.0, 1.0, -1.0])                    # a mirror image: no rotation reaches it
+    X[2] = rng.normal(size=(40, 3))                           # unrelated points
+    pb = np.zeros(40, np.int64)
+    static, per = bb._fit_stats(P, X, pb, 1)
+    R, T = bb.kabsch(P, X)
+    residual = float((np.linalg.norm(np.einsum("fij,nj->fni", R, P) + T[:, None] - X, axis=-1) ** 2).sum())
+    assert np.isclose(float(bb.rigid_sse(static, per)[0]), residual, rtol=1e-9)
+    assert float(bb.rigid_sse(static, per[:, 1:2])[0]) > 1.0      # the mirror costs something: no rotation reaches it

@@ -1,16 +1,16 @@
 """A bone budget for game engines (issue 33): the rig cut to ``N`` bones, the motion re-fitted.
 
 A reconstruction carries hundreds of branch bones and a bone per leaf cluster (815–1,841 joints);
-an engine wants 16–128. The kept bones are the roots, the trunk (while it fits in a quarter of the
-budget) and then the bones whose own turning moves the most of the tree, by the priority
-
-    p_b = RMS_t angle(l_b(t), l̄_b) · reach_b
-
-(``l_b`` its local rotation, ``l̄_b`` its mean, ``reach_b`` the farthest rest vertex it carries,
-through its whole subtree, from its head: the displacement its turning causes there). Every other
-bone — and every leaf-cluster bone — joins the group of its nearest kept ancestor, rigidly. (A
-greedy choice of the bone whose tail strays farthest from its group was tried: it picks tips,
-each fixing only its own vertices, and doubled the error on the broadleaf samples.)
+an engine wants 16–128. The kept bones are the roots and the trunk (while it fits in a quarter of
+the budget); every other bone — and every leaf-cluster bone — joins the group of its nearest kept
+ancestor and moves rigidly with it. The rest of the budget is spent greedily: each step keeps the
+branch bone whose split of its group (its subtree in the group against the rest) lowers the
+groups' summed squared error the most, the error a rigid fit leaves in closed form
+(:func:`rigid_sse`), so a conifer's leader, whose bones each turn little but together carry
+two-thirds of the crown, is cut before its side branches. (The first choice ranked bones by their
+own turning × reach: it left a conifer's whole upper crown in one rigid group, 6.3 % of the height
+off at 64 bones where the greedy split leaves 3.2 %; ranking by how far a bone's tail strays from
+its group picked tips, each fixing only its own vertices.)
 
 Each kept bone's motion is then re-fitted to what the full rig plays: per frame, the rigid
 transform ``W_k(t) = (R, T)`` that best carries its group's rest vertices ``p`` onto their full-rig
@@ -28,10 +28,11 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 
 import numpy as np
+from scipy import sparse
 
 from .. import bones
 from ..keys import flutter_quaternions
-from ..rotations import make_continuous, matrix_to_quat, quat_conj, quat_log, quat_mul, quat_rotate
+from ..rotations import make_continuous, matrix_to_quat, quat_conj, quat_mul, quat_rotate
 from ..tree3d import Tree3D
 from .meshes import BranchMesh, LeafMesh
 from .rig import BoneKeys, Rig
@@ -105,21 +106,50 @@ def _vertex_sample(branches: BranchMesh | None, leaves: LeafMesh | None, rig: Ri
     return P[keep], b[keep]
 
 
-def subtree_reach(rig: Rig, P: np.ndarray, pb: np.ndarray) -> np.ndarray:
-    """``(B + S,)`` the farthest sampled rest point carried by each bone or its descendants from
-    the bone's head, metres."""
-    reach = np.zeros(len(rig.names))
-    cur = pb.copy()
-    while (cur >= 0).any():                      # up every point's chain of bones at once
-        ok = cur >= 0
-        np.maximum.at(reach, cur[ok], np.linalg.norm(P[ok] - rig.head[cur[ok]], axis=1))
-        cur[ok] = rig.parent[cur[ok]]
-    return reach
+def _fit_stats(P: np.ndarray, X: np.ndarray, pb: np.ndarray, nb: int) -> tuple[np.ndarray, np.ndarray]:
+    """Each bone's additive sums of its sampled points for a rigid fit: ``(nb, 5)`` [n, Σp (3),
+    Σ|p|²] and ``(nb, F, 13)`` [Σx (3), Σ|x|², Σ p xᵀ (9)] per frame (``P (N, 3)`` rest, ``X (F, N,
+    3)`` posed, ``pb (N,)`` their bones)."""
+    F, N = X.shape[:2]
+    static = np.zeros((nb, 5))
+    static[:, 0] = np.bincount(pb, minlength=nb)
+    for i in range(3):
+        static[:, 1 + i] = np.bincount(pb, P[:, i], minlength=nb)
+    static[:, 4] = np.bincount(pb, (P ** 2).sum(axis=1), minlength=nb)
+    per = np.zeros((nb, F, 13))
+    ones = sparse.csr_matrix((np.ones(N), (pb, np.arange(N))), shape=(nb, N))
+    Xt = X.transpose(1, 0, 2).reshape(N, F * 3)                           # (N, F·3)
+    per[..., 0:3] = (ones @ Xt).reshape(nb, F, 3)
+    per[..., 3] = ones @ (X ** 2).sum(axis=-1).T
+    for i in range(3):                                                   # Σ p_i x_j: one sparse product per i
+        w = sparse.csr_matrix((P[:, i], (pb, np.arange(N))), shape=(nb, N))
+        per[..., 4 + 3 * i:7 + 3 * i] = (w @ Xt).reshape(nb, F, 3)
+    return static, per
 
 
-def choose_bones(rig: Rig, reach: np.ndarray, n: int) -> np.ndarray:
+def rigid_sse(static: np.ndarray, per: np.ndarray) -> np.ndarray:
+    """``(...)`` the squared error, summed over points and frames, that the best rigid motion of a
+    point set leaves, from its sums (:func:`_fit_stats`; ``static (..., 5)``, ``per (..., F, 13)``).
+    With ``H = Σ (p − p̄)(x − x̄)ᵀ`` and its singular values ``σ``, per frame
+
+        min_R,T Σ |R p + T − x|² = Σ|x − x̄|² + Σ|p − p̄|² − 2 (σ₁ + σ₂ + sign(det H) σ₃)
+
+    (Kabsch: the best rotation reaches ``tr(R H) = σ₁ + σ₂ ± σ₃``, the sign keeping it a rotation)."""
+    n = np.maximum(static[..., 0], 1e-12)
+    sp, spp = static[..., 1:4], static[..., 4]
+    sx, sxx = per[..., 0:3], per[..., 3]
+    H = per[..., 4:].reshape(per.shape[:-1] + (3, 3)) - sp[..., None, :, None] * sx[..., None, :] / n[..., None, None, None]
+    sv = np.sqrt(np.maximum(np.linalg.eigvalsh(np.swapaxes(H, -1, -2) @ H), 0.0))    # ascending
+    sign = np.where(np.linalg.det(H) < 0, -1.0, 1.0)
+    best = sv[..., 2] + sv[..., 1] + sign * sv[..., 0]
+    spread = sxx - (sx ** 2).sum(axis=-1) / n[..., None] + (spp - (sp ** 2).sum(axis=-1) / n)[..., None]
+    return np.maximum(spread - 2.0 * best, 0.0).sum(axis=-1)
+
+
+def choose_bones(rig: Rig, P: np.ndarray, pb: np.ndarray, X: np.ndarray, n: int) -> np.ndarray:
     """``(B + S,)`` bool: the ``n`` bones kept (module docstring): roots, the trunk while it fits in
-    a quarter of ``n``, then by priority. Leaf-cluster bones are never kept."""
+    a quarter of ``n``, then the greedy splits. Leaf-cluster bones are never kept. ``P``, ``pb``,
+    ``X`` the sampled rest points, their bones and their full-rig positions ``(F, N, 3)``."""
     total = len(rig.names)
     B = rig.n_branch
     keep = np.zeros(total, bool)
@@ -127,15 +157,38 @@ def choose_bones(rig: Rig, reach: np.ndarray, n: int) -> np.ndarray:
     trunk = np.flatnonzero(rig.role[:B] == TRUNK)
     if len(trunk) + keep.sum() <= max(1, n // 4):
         keep[trunk] = True
-    local = rig.keys.local
-    mean = local.mean(axis=0)
-    mean /= np.maximum(np.linalg.norm(mean, axis=-1, keepdims=True), 1e-12)
-    ang = np.linalg.norm(quat_log(quat_mul(quat_conj(mean)[None], local)), axis=-1)    # (F, B)
-    priority = np.sqrt(np.mean(ang ** 2, axis=0)) * reach[:B]
-    priority[keep[:B]] = -np.inf
-    room = max(0, n - int(keep.sum()))
-    best = np.argsort(-priority, kind="stable")[:room]
-    keep[best[np.isfinite(priority[best])]] = True
+    centre = P.mean(axis=0)
+    static, per = _fit_stats(P - centre, X - centre, pb, total)
+    depth = bones.bone_depths(rig.parent)
+    for d in range(int(depth.max()) if total else 0, 0, -1):     # sums over each bone's part of its group
+        at = np.flatnonzero((depth == d) & ~keep)
+        np.add.at(static, rig.parent[at], static[at])
+        np.add.at(per, rig.parent[at], per[at])
+    gain = np.full(total, -np.inf)
+    g = groups(rig, keep)
+    dirty = np.ones(total, bool)
+    while keep.sum() < n:
+        cand = np.flatnonzero(dirty & ~keep & (np.arange(total) < B))
+        if len(cand):
+            root = g[cand]
+            whole = rigid_sse(static[root], per[root])
+            split = rigid_sse(static[cand], per[cand]) + rigid_sse(static[root] - static[cand], per[root] - per[cand])
+            gain[cand] = whole - split
+        gain[keep] = -np.inf
+        c = int(np.argmax(gain))
+        if not np.isfinite(gain[c]):
+            break
+        keep[c] = True
+        a = rig.parent[c]
+        while a >= 0:                            # its group's bones above it no longer carry it
+            static[a] -= static[c]
+            per[a] -= per[c]
+            if keep[a]:
+                break
+            a = rig.parent[a]
+        old = g[c]
+        g = groups(rig, keep)
+        dirty = (g == old) | (g == c)
     return keep
 
 
@@ -176,7 +229,7 @@ def budget_rig(tree: Tree3D, rig: Rig, branches: BranchMesh | None, leaves: Leaf
     P, pb = _vertex_sample(branches, leaves, rig, int((tree.meta.get("mesh") or {}).get("seed", 0)))
     head0 = rig.head.astype(np.float64)
     X = heads[:, pb] + quat_rotate(qw[:, pb], P[None] - head0[pb][None])      # (F, P, 3) the full rig
-    keep = choose_bones(rig, subtree_reach(rig, P, pb), n)
+    keep = choose_bones(rig, P, pb, X, n)
     g = groups(rig, keep)
     kept = np.flatnonzero(keep)
     index = np.full(total, -1)
