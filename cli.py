@@ -29,7 +29,9 @@ from .core.detail.leaf_clusters import LeafParams
 from .core.detail.twigs import TwigParams
 from .core.envelope import envelope_from_meta
 from .core.errors import Cancelled, InputError
-from .core.fileio import atomic_savez
+from .core.farm import identity
+from .core.farm.report import JobRecord, read_report
+from .core.fileio import atomic_savez, read_json
 from .core.formats import FORMATS
 from .core.generate import batch as gb
 from .core.generate import species
@@ -65,7 +67,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--outline",
                    help="(required with a VIDEO) tree outline in frame 1: JSON list of [x, y] pixel points, a mask "
                         "image (white = tree), or 'auto' (what sways in the first seconds)")
-    p.add_argument("--out", required=True, help="output folder (created if missing)")
+    p.add_argument("--out", help="(required) output folder (created if missing); it gets report.json and job.log")
+    p.add_argument("--job", metavar="JOB.json",
+                   help="the job as a file: a JSON object of these options by name (video, outline, out, gltf, "
+                        "bones, ...; true for a switch); only --force, --dry-run and --quiet may be added on the line")
+    p.add_argument("--dry-run", action="store_true",
+                   help="say whether the job would run, run again or be skipped (done), and do nothing")
     p.add_argument("--npz", action="store_true",
                    help="also write DIR/result.npz: parents (N,), nodes2d (F, N, 2) px, nodes3d (F, N, 3) m, "
                         "level (N,), fps")
@@ -159,7 +166,8 @@ def build_parser() -> argparse.ArgumentParser:
     for f in FORMATS:                      # the output formats' registry: --fbx --usd --gltf --blend --preview
         p.add_argument(f"--{f.flag}", action="store_true", help=f.help.format(file=f.file))
     p.add_argument("--no-video", action="store_true", help="skip overlay.mp4 (overlay.png is still written)")
-    p.add_argument("--force", action="store_true", help="overwrite existing output files in DIR")
+    p.add_argument("--force", action="store_true",
+                   help="overwrite existing output files in DIR; run a job again that report.json says is done")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     G = gb.GenerateRequest
     g = p.add_argument_group("generation (--generate; see below)")
@@ -343,11 +351,14 @@ def _run_generation(args, plan, outputs, wanted) -> int:
                                  "seed": int(tree.meta.get("seed", 0))}
             return outputs.write_outputs(tree, folder, wanted, overwrite=args.force, fresh_scene=True,
                                          report=log, leaf_image=args.leaf_image, loop_s=args.loop,
-                                         game=_game(args))
+                                         game=_game(args), stats=args.record.counts)
     t0 = time.monotonic()
     entries = gb.generate_trees(plan.model, plan.species_label, plan.envelope, plan.envelope_label, plan.req,
-                                args.out, write, _progress_printer(args.quiet), log)
+                                args.out, write, args.record.timed(_progress_printer(args.quiet)), log)
     bones = [e["bones"] for e in entries]
+    args.record.add(trees=len(entries), leaf_clusters=sum(e["leaf_clusters"] for e in entries))
+    if "bones" not in args.record.counts:                  # the Blender outputs count the rig they built
+        args.record.add(bones=sum(bones))
     sys.stderr.write(f"done: {len(entries)} tree(s) of {plan.species_label} in {plan.envelope_label}, "
                      f"{min(bones)}-{max(bones)} bones, {entries[0]['frames']} frames, "
                      f"{time.monotonic() - t0:.1f} s -> {os.path.join(args.out, gb.INDEX)}\n")
@@ -361,7 +372,7 @@ def _generate_only(args, plan) -> int:
     outputs = _blender_outputs() if files else None
     if outputs is not None:
         outputs.check_wanted(wanted)
-    os.makedirs(args.out, exist_ok=True)
+    _begin(args)
     return _run_generation(args, plan, outputs, wanted)
 
 
@@ -416,8 +427,13 @@ def _reconstruct(args, gen) -> int:
     outputs = _blender_outputs() if blender_files else None
     if outputs is not None:
         outputs.check_wanted(wanted)
-    cb = _progress_printer(args.quiet)
+    _begin(args)
+    cb = args.record.timed(_progress_printer(args.quiet))
     results = pipeline.run_all(args.video, args.outline, settings, cb)
+    info = results[0].info
+    args.record.video = {"width": info.width, "height": info.height, "fps": float(info.fps),
+                         "frames": [int(results[0].start), int(results[0].stop)],
+                         "time_base": "index / fps" if results[0].tracks.times is None else "frame timestamps"}
     base = os.path.splitext(os.path.basename(args.video))[0] or "Tree"
     names = [f"Tree {base}"] if n_trees == 1 else [f"Tree {base} {k + 1}" for k in range(n_trees)]
     trees = pipeline.build_shot(results, settings, names, cb)     # one scale, each where it stands
@@ -433,6 +449,9 @@ def _write_tree(args, res, tree, out: str, outputs, wanted, exports: bool, cb) -
     os.makedirs(out, exist_ok=True)
     for w in res.warnings:
         sys.stderr.write(f"warning: {w}\n")
+        args.record.warn(w)
+    args.record.add(trees=1, tracks=res.tracks.n_tracks, nodes=tree.n_nodes,
+                    leaf_clusters=tree.leaves.count if tree.leaves is not None else 0)
     meta = {"video": os.path.abspath(args.video), "frames": [res.start, res.stop],
             "levels": args.levels, "scale": args.scale, "version": __version__}
     skeleton_io.save_skeleton(os.path.join(out, "skeleton.npz"), res.skeleton, meta)
@@ -447,31 +466,179 @@ def _write_tree(args, res, tree, out: str, outputs, wanted, exports: bool, cb) -
                            None if args.no_video else os.path.join(out, "overlay.mp4"), cb,
                            res.foreground.mask if res.foreground is not None else None)
     if outputs is not None and exports:              # with --generate the exports are per generated tree
+        cb("blender outputs", 0.0)
         outputs.write_outputs(tree, out, wanted, overwrite=args.force, leaf_image=args.leaf_image,
-                              report=lambda m: sys.stderr.write(m + "\n"), loop_s=args.loop, game=_game(args))
+                              report=lambda m: sys.stderr.write(m + "\n"), loop_s=args.loop, game=_game(args),
+                              stats=args.record.counts)
     conf = res.skeleton.confidence
     sure = "" if conf is None else f", {node_motion.confidence_summary(conf)}"
     sys.stderr.write(f"done: {res.skeleton.n_nodes} nodes, {res.tracks.n_tracks} tracks, "
                      f"{res.tracks.n_frames} frames{sure} -> {out}\n")
 
 
+#: options that are not the job's settings (where it goes, how it talks, what to do with a done one)
+NOT_SETTINGS = ("out", "video", "outline", "job", "force", "quiet", "dry_run", "record", "begun")
+#: the options --job allows beside it on the line
+BESIDE_JOB = ("job", "force", "quiet", "dry_run")
+
+
+def job_argv(doc, path: str) -> list[str]:
+    """The command line of a job file's JSON object (its keys are the batch options' names, ``-`` or
+    ``_``; a switch takes true/false, a number a number, the rest a string); :class:`InputError`
+    for anything else."""
+    if not isinstance(doc, dict):
+        raise InputError(f"{path} holds no JSON object; write the options as {{\"video\": ..., \"out\": ...}}")
+    actions = {a.dest: a for a in build_parser()._actions if a.dest not in ("help", "job")}
+    argv: list[str] = []
+    for key, value in doc.items():
+        dest = str(key).replace("-", "_")
+        a = actions.get(dest)
+        if a is None or dest in ("dry_run", "force", "quiet"):
+            raise InputError(f"unknown key '{key}' in {path}; use the batch options' names (video, outline, out, "
+                             "gltf, bones, ...) and give --force/--dry-run/--quiet on the line")
+        flag = a.option_strings[0] if a.option_strings else None
+        switch = a.nargs == 0
+        kind = bool if switch else (a.type or str)
+        ok = (isinstance(value, bool) if kind is bool else
+              isinstance(value, int) and not isinstance(value, bool) if kind is int else
+              isinstance(value, (int, float)) and not isinstance(value, bool) if kind is float else
+              isinstance(value, str))
+        if value is None:
+            continue
+        if not ok:
+            want = {bool: "true or false", int: "a whole number", float: "a number"}.get(kind, "a string")
+            raise InputError(f"'{key}' in {path} is {json_type(value)}; give {want}")
+        if flag is None:
+            argv.insert(0, str(value))
+        elif switch:
+            argv += [flag] if value else []
+        else:
+            argv += [flag, str(value)]
+    return argv
+
+
+def json_type(value) -> str:
+    return {bool: "true/false", int: "a number", float: "a number", str: "a string", list: "a list",
+            dict: "an object"}.get(type(value), type(value).__name__)
+
+
+def _args_from_job(args):
+    """The options of ``args.job`` (the line may add only --force, --dry-run, --quiet)."""
+    bare = vars(build_parser().parse_args(["--job", args.job]))
+    extra = [k for k, v in bare.items() if k not in BESIDE_JOB and getattr(args, k) != v]
+    if extra:
+        raise InputError(f"--{extra[0].replace('_', '-')} given beside --job; put it in {args.job} instead")
+    if not os.path.isfile(args.job):
+        raise InputError(f"job file '{args.job}' does not exist; give the path of a JSON job file")
+    doc = read_json(args.job, f"job file '{args.job}'", "write the job as one JSON object of batch options")
+    new = build_parser().parse_args(job_argv(doc, args.job))
+    new.force, new.quiet, new.dry_run = args.force, args.quiet, args.dry_run
+    return new
+
+
+def _record(args, argv: list[str]) -> JobRecord:
+    """The job's record: its settings (the resolved options; where it reads and writes excepted) and
+    input identity."""
+    settings = {k: v for k, v in sorted(vars(args).items()) if k not in NOT_SETTINGS}
+    if args.outline == "auto":
+        settings["outline"] = "auto"
+    return JobRecord(list(argv), settings, identity.settings_hash(settings), __version__,
+                     input=identity.input_identity(args.video, args.outline))
+
+
+class _Tee:
+    """stderr that also keeps its lines for job.log."""
+
+    def __init__(self, stream, lines: list[str]):
+        self._stream, self._lines = stream, lines
+
+    def write(self, text: str) -> int:
+        self._lines.append(text)
+        return self._stream.write(text)
+
+    def __getattr__(self, name):
+        return getattr(self._stream, name)
+
+
+def _begin(args) -> None:
+    """The work starts: the folder gets a ``running`` report (a killed run leaves it saying so)."""
+    os.makedirs(args.out, exist_ok=True)
+    args.record.write(args.out)
+    args.begun = True
+
+
+def _run(args) -> int:
+    """The job of ``args`` (parsed, its record set), after the checks every job takes."""
+    _apply_engine(args)
+    _check_loop(args)
+    gen = _plan_generation(args)        # None without --generate
+    if args.video is None:
+        return _generate_only(args, gen)
+    return _reconstruct(args, gen)
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Run the batch job on ``argv``; returns the exit code (argparse errors exit 2 via SystemExit)."""
-    args = build_parser().parse_args(argv)
+    """Run the batch job on ``argv``; returns the exit code (argparse errors exit 2 via SystemExit).
+    Every job that got as far as its folder leaves ``report.json`` and ``job.log`` there
+    (:mod:`.core.farm.report`); a done job (its report ``ok``, the same settings and input) is
+    skipped unless ``--force``."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    lines: list[str] = []
+    stderr = sys.stderr
+    sys.stderr = _Tee(stderr, lines)
+    args.begun, prior, status, message = False, None, "ok", None
     try:
-        _apply_engine(args)
-        _check_loop(args)
-        gen = _plan_generation(args)        # None without --generate
-        if args.video is None:
-            return _generate_only(args, gen)
-        return _reconstruct(args, gen)
-    except InputError as exc:
-        sys.stderr.write(f"error: {exc}\n")
-        return 2
-    except Cancelled as exc:
-        sys.stderr.write(f"cancelled: {exc}\n")
-        return 1
-    except Exception:  # internal error: keep the traceback for the bug report
-        traceback.print_exc()
-        sys.stderr.write("internal error: please report it with the traceback above\n")
-        return 1
+        try:
+            if args.job:
+                args = _args_from_job(args)
+                args.begun = False
+            if not args.out:
+                parser.error("the following arguments are required: --out")
+            args.record = _record(args, argv)
+            args.record.log = lines
+            prior = read_report(args.out) if os.path.isdir(args.out) else None
+            decision = identity.decide(prior, args.record.settings_sha256, args.record.input, args.force)
+            if args.dry_run:
+                print(f"{decision.action}: {args.out}: {decision.why}")
+                return 0
+            if decision.action == "skip":
+                sys.stderr.write(f"skipped: {args.out}: {decision.why}\n")
+                return 0
+            if decision.action == "redo":
+                args.force = True                 # the files there are our unfinished run's
+            return _run(args)
+        except InputError as exc:
+            status, message = "bad_input", str(exc)
+            sys.stderr.write(f"error: {exc}\n")
+            return 2
+        except Cancelled as exc:
+            status, message = "cancelled", str(exc)
+            sys.stderr.write(f"cancelled: {exc}\n")
+            return 1
+        except Exception as exc:  # internal error: keep the traceback for the bug report
+            status, message = "error", f"{exc.__class__.__name__}: {exc}"
+            traceback.print_exc()
+            sys.stderr.write("internal error: please report it with the traceback above\n")
+            return 1
+    finally:
+        sys.stderr = stderr
+        _final_report(args, prior, status, message)
+
+
+def _final_report(args, prior: dict | None, status: str, message: str | None) -> None:
+    """Write the job's report unless it never reached its folder: a failure before the work
+    started reports only into an existing folder that holds no finished job's report."""
+    record = getattr(args, "record", None)
+    if record is None or getattr(args, "dry_run", False) or not args.out:
+        return
+    if not args.begun and not (os.path.isdir(args.out) and (prior is None or prior.get("status") != "ok")):
+        return
+    if not args.begun and status == "ok":
+        return                                    # skipped: the done job's report stays
+    try:
+        record.finish(status, message, args.out)
+        record.write(args.out)
+    except OSError as exc:                         # a full disk or a read-only folder: say it, keep the code
+        sys.stderr.write(f"warning: report.json not written in {args.out} ({exc.strerror})\n")

@@ -17,6 +17,9 @@ asset/        a ``Tree3D`` → what every writer copies (``TreeAsset``): the rig
               bone-animation texture, collision capsules, the impostor's layout and card, a packed
               GLB, the web viewer page. Blender's builders copy it; the engine files are written
               from it.
+farm/         the record of a batch job (``JobRecord``: ``report.json`` and ``job.log``) and what
+              makes two runs the same job (``identity``: input content hashes, settings hash, the
+              re-run decision); imports no stage.
 
 Shared by every stage, at this level: the tree model (``tree3d``: ``Tree3D``, ``LeafClusters``,
 and its ``meta`` keys in ``meta``), its bones (``bones``), topology helpers (``topology``),

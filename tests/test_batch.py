@@ -6,6 +6,7 @@ import sys
 
 import numpy as np
 import pytest
+from job_report import check_report
 
 from samples import ROOT, committed
 
@@ -25,7 +26,11 @@ def test_batch_writes_skeleton_overlays_and_result(tmp_path):
     out = tmp_path / "out"
     code, _, err = run(VIDEO, "--outline", OUTLINE, "--out", out, "--npz", "--frames", "0:48", "--levels", "5")
     assert code == 0, err
-    assert sorted(os.listdir(out)) == ["overlay.mp4", "overlay.png", "result.npz", "skeleton.npz", "tree3d.npz"]
+    assert sorted(os.listdir(out)) == ["job.log", "overlay.mp4", "overlay.png", "report.json", "result.npz",
+                                       "skeleton.npz", "tree3d.npz"]
+    doc = check_report(out)
+    assert doc["status"] == "ok" and {o["path"] for o in doc["outputs"]} == {
+        "overlay.mp4", "overlay.png", "result.npz", "skeleton.npz", "tree3d.npz"}
     with np.load(out / "result.npz", allow_pickle=False) as z:
         F, N = z["nodes2d"].shape[:2]
         assert F == 48 and z["nodes2d"].shape[2] == 2 and z["parents"].shape == (N,) and z["level"].shape == (N,)
@@ -46,7 +51,8 @@ def test_paper_skeleton_option(tmp_path):
     code, _, err = run(VIDEO, "--outline", OUTLINE, "--out", tmp_path / "p", "--skeleton", "paper",
                        "--frames", ":24", "--no-video")
     assert code == 0, err
-    assert sorted(os.listdir(tmp_path / "p")) == ["overlay.png", "skeleton.npz", "tree3d.npz"]
+    assert sorted(os.listdir(tmp_path / "p")) == ["job.log", "overlay.png", "report.json", "skeleton.npz", "tree3d.npz"]
+    assert check_report(tmp_path / "p")["settings"]["skeleton"] == "paper"
     with np.load(tmp_path / "p" / "skeleton.npz", allow_pickle=False) as z:
         assert json.loads(str(z["meta_json"]))["kind"] == "paper"
 

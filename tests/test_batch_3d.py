@@ -5,6 +5,7 @@ import sys
 
 import numpy as np
 import pytest
+from job_report import check_report
 
 from tree_from_video.core.tree3d import load_tree
 
@@ -33,11 +34,17 @@ def out(tmp_path_factory):
 
 def test_every_requested_file_and_nothing_else(out):
     # the USD's leaf texture beside it (textures/), so the .usdc opens elsewhere
-    assert sorted(os.listdir(out)) == sorted(["overlay.png", "preview.png", "result.npz", "skeleton.npz", "textures",
-                                              "tree.blend", "tree.fbx", "tree.glb", "tree.usdc", "tree3d.npz"])
+    assert sorted(os.listdir(out)) == sorted(["job.log", "overlay.png", "preview.png", "report.json", "result.npz",
+                                              "skeleton.npz", "textures", "tree.blend", "tree.fbx", "tree.glb",
+                                              "tree.usdc", "tree3d.npz"])
+    doc = check_report(out)                      # the report lists every file with its size, and the rig
+    assert {o["path"]: o["bytes"] for o in doc["outputs"]} == {
+        os.path.relpath(os.path.join(r, f), out).replace(os.sep, "/"): os.path.getsize(os.path.join(r, f))
+        for r, _, fs in os.walk(out) for f in fs if f not in ("report.json", "job.log")}
+    assert doc["counts"]["bones"] > 100 and doc["counts"]["triangles"] > 10_000
     assert [f for f in os.listdir(out / "textures") if f.endswith(".png") and " " not in f]
     for name in os.listdir(out):
-        if name == "textures":
+        if name in ("textures", "job.log"):
             continue
         assert os.path.getsize(out / name) > 1000, name
         assert oct(os.stat(out / name).st_mode & 0o044) == oct(0o044), f"{name} is not readable by others"

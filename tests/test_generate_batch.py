@@ -10,6 +10,7 @@ import os
 import cv2
 import numpy as np
 import pytest
+from job_report import check_report
 from scipy.io import wavfile
 
 from tree_from_video import cli as batch
@@ -64,7 +65,9 @@ def heart(tmp_path_factory):
 
 def test_three_distinct_trees_inside_the_heart(heart, tmp_path):
     out, _ = heart
-    assert sorted(os.listdir(out)) == ["generated.json", "tree_000", "tree_001", "tree_002"]
+    assert sorted(os.listdir(out)) == ["generated.json", "job.log", "report.json", "tree_000", "tree_001", "tree_002"]
+    doc = check_report(out)
+    assert doc["status"] == "ok" and doc["input"] is None and doc["counts"]["trees"] == 3
     trees = []
     for k in range(3):
         assert sorted(os.listdir(out / f"tree_00{k}")) == ["tree.glb", "tree3d.npz"]
@@ -216,8 +219,9 @@ def test_video_mode_fits_the_species_and_grows_in_its_envelope(tmp_path):
     out = tmp_path / "vid"
     code, err = run(VIDEO, "--outline", OUTLINE, "--frames", "0:60", "--generate", 2, "--no-video", "--out", out)
     assert code == 0, err
-    assert sorted(os.listdir(out)) == ["generated.json", "overlay.png", "skeleton.npz", "species.json",
-                                       "tree3d.npz", "tree_000", "tree_001"]
+    assert sorted(os.listdir(out)) == ["generated.json", "job.log", "overlay.png", "report.json", "skeleton.npz",
+                                       "species.json", "tree3d.npz", "tree_000", "tree_001"]
+    assert check_report(out)["counts"]["trees"] == 3            # the reconstruction and the two grown
     model = species.load_species(out / "species.json")
     assert model.n_frames == 60 and model.name == "video" and model.n_bifurcations > 5
     source = load_tree(out / "tree3d.npz")

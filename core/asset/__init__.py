@@ -42,6 +42,13 @@ class TreeAsset:
     pivots: PivotPainter | None = None
     capsules: list[Capsule] = field(default_factory=list)
 
+    def counts(self) -> dict[str, int]:
+        """``{"bones", "triangles"}``: the rig's bones and the first level's triangles (branch
+        polygons fanned, two a leaf card)."""
+        tris = 0 if self.branches is None else int((self.branches.loop_total - 2).sum())
+        tris += 0 if self.leaves is None else 2 * self.leaves.quads
+        return {"bones": len(self.rig.names), "triangles": tris}
+
 
 def tree_asset(tree: Tree3D, *, mesh: bool = True, leaves: bool = True, sides: int = 8,
                curliness: float | None = None, bark: str | None = None, leaf_image: str | None = None,

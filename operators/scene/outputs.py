@@ -38,13 +38,14 @@ def check_wanted(wanted: dict) -> None:
 
 def write_outputs(tree: Tree3D, out_dir: str, wanted: dict, overwrite: bool = False,
                   fresh_scene: bool = True, report=print, leaf_image: str | None = None,
-                  loop_s: float = 0.0, game: GameSettings | None = None) -> dict:
+                  loop_s: float = 0.0, game: GameSettings | None = None, stats: dict | None = None) -> dict:
     """Build ``tree`` in the scene and write the ``wanted`` files into ``out_dir``.
 
     ``wanted`` = {format flag: bool} (:mod:`core.formats`); ``fresh_scene`` starts from an empty
     scene (batch runs); ``loop_s`` > 0 cuts the motion to a seamless loop of about that many
     seconds first (:func:`core.loop.loop_tree`); ``game`` the game export's bone budget, levels of
     detail and engine files (:class:`core.asset.game.GameSettings`); returns {format flag: path}.
+    ``stats`` (a job's counts) gets the built rig's bones and the first level's triangles added.
     """
     check_wanted(wanted)
     game = game or GameSettings()
@@ -67,6 +68,9 @@ def write_outputs(tree: Tree3D, out_dir: str, wanted: dict, overwrite: bool = Fa
     if built["lods"]:
         report(f"[lods] {lod_line(built['lods'])}")
     objects = trees.tree_objects(built["collection"])
+    if stats is not None:
+        for k, v in built["asset"].counts().items():
+            stats[k] = int(stats.get(k, 0)) + v
     written = {}
     for f in FORMATS:                       # the interchange files, in the registry's order
         if f.interchange and wanted.get(f.flag):
