@@ -169,6 +169,20 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--force", action="store_true",
                    help="overwrite existing output files in DIR; run a job again that report.json says is done")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
+    f = p.add_argument_group("farm (--farm: many jobs on a Dask cluster; see the README's Farm)")
+    f.add_argument("--farm", metavar="FOLDER|LIST.txt|JOBS.json",
+                   help="run a job per video of a folder (mp4, mov, m4v, avi, mkv, webm, mts; each video's outline "
+                        "is <stem>.outline.json or <stem>.mask.png beside it, else --outline), per line of a list "
+                        "file, or per object of a jobs .json, into DIR/<stem>/, with the other options given here; "
+                        "writes DIR/farm.json. Exit 0 all done, 1 some failed")
+    f.add_argument("--scheduler", metavar="ADDRESS",
+                   help="a running Dask scheduler (tcp://host:8786) to send the jobs to (default: a local cluster)")
+    f.add_argument("--workers", type=int, default=None, metavar="N",
+                   help="worker processes of the local cluster (default: the machine's cores)")
+    f.add_argument("--job-timeout", type=float, default=0.0, metavar="S",
+                   help="kill a job after S seconds (it is run once more, then reported; default 0: no limit)")
+    f.add_argument("--blender", metavar="PATH",
+                   help="run each job as PATH -b --python batch.py -- ... (default: this Python)")
     G = gb.GenerateRequest
     g = p.add_argument_group("generation (--generate; see below)")
     g.add_argument("--generate", type=int, metavar="N",
@@ -477,7 +491,8 @@ def _write_tree(args, res, tree, out: str, outputs, wanted, exports: bool, cb) -
 
 
 #: options that are not the job's settings (where it goes, how it talks, what to do with a done one)
-NOT_SETTINGS = ("out", "video", "outline", "job", "force", "quiet", "dry_run", "record", "begun")
+NOT_SETTINGS = ("out", "video", "outline", "job", "force", "quiet", "dry_run", "record", "begun", "farm",
+                "scheduler", "workers", "job_timeout", "blender")
 #: the options --job allows beside it on the line
 BESIDE_JOB = ("job", "force", "quiet", "dry_run")
 
@@ -493,7 +508,7 @@ def job_argv(doc, path: str) -> list[str]:
     for key, value in doc.items():
         dest = str(key).replace("-", "_")
         a = actions.get(dest)
-        if a is None or dest in ("dry_run", "force", "quiet"):
+        if a is None or dest in ("dry_run", "force", "quiet", "farm", "scheduler", "workers", "job_timeout", "blender"):
             raise InputError(f"unknown key '{key}' in {path}; use the batch options' names (video, outline, out, "
                              "gltf, bones, ...) and give --force/--dry-run/--quiet on the line")
         flag = a.option_strings[0] if a.option_strings else None
@@ -568,8 +583,8 @@ def _begin(args) -> None:
 
 
 def _run(args) -> int:
-    """The job of ``args`` (parsed, its record set), after the checks every job takes."""
-    _apply_engine(args)
+    """The job of ``args`` (parsed, its engine preset applied, its record set), after the checks
+    every job takes."""
     _check_loop(args)
     gen = _plan_generation(args)        # None without --generate
     if args.video is None:
@@ -591,11 +606,15 @@ def main(argv: list[str] | None = None) -> int:
     args.begun, prior, status, message = False, None, "ok", None
     try:
         try:
+            if args.farm:
+                from . import cli_farm
+                return cli_farm.main(args, argv)
             if args.job:
                 args = _args_from_job(args)
                 args.begun = False
             if not args.out:
                 parser.error("the following arguments are required: --out")
+            _apply_engine(args)
             args.record = _record(args, argv)
             args.record.log = lines
             prior = read_report(args.out) if os.path.isdir(args.out) else None
