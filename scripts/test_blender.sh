@@ -36,6 +36,21 @@ if [ $rc -ne 2 ] || ! grep -q "without USD" "$OUT/log" || [ -e "$OUT/usd" ]; the
 fi
 echo "batch under Blender 4.3: all files written; --usd refused clearly"
 
+echo "== Blender 4.3: the Flamenco job type's command for one video, run as a Flamenco worker would"
+mkdir -p "$OUT/clips"
+cp sample_videos/broad/video.mp4 "$OUT/clips/oak.mp4"
+cp sample_videos/broad/outline.json "$OUT/clips/oak.outline.json"
+printf '{"videos": "%s", "out_dir": "%s", "batch_py": "%s", "gltf": true, "preview": false, "extra": "--frames 0:24 --no-video --quiet"}' \
+  "$OUT/clips/oak.mp4" "$OUT/flamenco" "$PWD/batch.py" > "$OUT/flamenco.json"
+node tests/flamenco_author.mjs docs/farm/tree_from_video.js "$OUT/flamenco.json" > "$OUT/flamenco_tasks.json"
+# {blender} -> blender, {blenderArgs} -> Flamenco's default "-b -y", then the command's args
+mapfile -t FLAMENCO_ARGS < <(python3 -c 'import json,sys; [print(a) for a in json.load(open(sys.argv[1]))["tasks"][0]["commands"][0]["parameters"]["args"]]' "$OUT/flamenco_tasks.json")
+"$RB" run blender -b -y --factory-startup "${FLAMENCO_ARGS[@]}" > "$OUT/flamenco.log" 2>&1 \
+  || { tail -20 "$OUT/flamenco.log"; echo "the Flamenco task's command failed in Blender 4.3" >&2; exit 1; }
+grep -q '"status": "ok"' "$OUT/flamenco/oak/report.json" && [ -s "$OUT/flamenco/oak/tree.glb" ] \
+  || { tail -20 "$OUT/flamenco.log"; echo "the Flamenco task wrote no ok report and tree.glb" >&2; exit 1; }
+echo "Flamenco task under Blender 4.3: report ok, tree.glb written"
+
 echo "== Blender 4.3: the panel's export in background Blenders, and a failing worker"
 "$RB" run blender -b --factory-startup --python-exit-code 1 --python tests/blender/background_export.py \
   > "$OUT/bg_export.log" 2>&1 || { tail -20 "$OUT/bg_export.log"; echo "background export check failed" >&2; exit 1; }
