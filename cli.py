@@ -14,6 +14,7 @@ ranges of the options are the core's (:mod:`.core.params`).
 from __future__ import annotations
 
 import argparse
+import errno
 import os
 import sys
 import tempfile
@@ -493,6 +494,8 @@ def _write_tree(args, res, tree, out: str, outputs, wanted, exports: bool, cb) -
 #: options that are not the job's settings (where it goes, how it talks, what to do with a done one)
 NOT_SETTINGS = ("out", "video", "outline", "job", "force", "quiet", "dry_run", "record", "begun", "farm",
                 "scheduler", "workers", "job_timeout", "blender")
+#: errors of the disk a job writes to: the user's to fix (exit 2), not ours
+USERS_DISK = (errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EFBIG)
 #: the options --job allows beside it on the line
 BESIDE_JOB = ("job", "force", "quiet", "dry_run")
 
@@ -632,6 +635,14 @@ def main(argv: list[str] | None = None) -> int:
             status, message = "bad_input", str(exc)
             sys.stderr.write(f"error: {exc}\n")
             return 2
+        except OSError as exc:
+            if exc.errno not in USERS_DISK:
+                raise
+            where = exc.filename or args.out
+            status, message = "bad_input", (f"cannot write {where} ({exc.strerror}); free space on that disk or "
+                                            "choose another --out")
+            sys.stderr.write(f"error: {message}\n")
+            return 2
         except Cancelled as exc:
             status, message = "cancelled", str(exc)
             sys.stderr.write(f"cancelled: {exc}\n")
@@ -660,4 +671,5 @@ def _final_report(args, prior: dict | None, status: str, message: str | None) ->
         record.finish(status, message, args.out)
         record.write(args.out)
     except OSError as exc:                         # a full disk or a read-only folder: say it, keep the code
-        sys.stderr.write(f"warning: report.json not written in {args.out} ({exc.strerror})\n")
+        if status == "ok" or exc.errno not in USERS_DISK:     # a full disk was the one line already
+            sys.stderr.write(f"warning: report.json not written in {args.out} ({exc.strerror})\n")

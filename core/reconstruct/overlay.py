@@ -1,13 +1,14 @@
 """Drawing tracks and the skeleton over the video (``overlay.png`` for frame 1, ``overlay.mp4``)."""
 from __future__ import annotations
 
+import errno
 import os
 import tempfile
 
 import cv2
 import numpy as np
 
-from ..fileio import publish
+from ..fileio import atomic_write_bytes, publish
 from ..progress import ProgressFn, report
 from .node_motion import LOW_CONFIDENCE
 from .skeleton2d import Skeleton2D
@@ -75,6 +76,19 @@ def overlay_zoom(height: int) -> int:
     return int(min(3, max(1, round(720 / max(height, 1)))))
 
 
+def _check_written(tmp: str, n: int, path: str) -> None:
+    """OpenCV's video writer fails silently (a full disk leaves a short file): an ``OSError`` unless
+    ``tmp`` holds ``n`` frames."""
+    cap = cv2.VideoCapture(tmp)
+    frames = int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) if cap.isOpened() else 0
+    cap.release()
+    if frames < n:
+        st = os.statvfs(os.path.dirname(os.path.abspath(tmp)))
+        full = st.f_bavail * st.f_frsize < 1 << 20
+        raise OSError(errno.ENOSPC if full else errno.EIO,
+                      os.strerror(errno.ENOSPC) if full else f"the video writer wrote {frames} of {n} frames", path)
+
+
 def write_overlays(info: VideoInfo, start: int, skel: Skeleton2D, tracks: Tracks, png_path: str,
                    mp4_path: str | None, progress: ProgressFn | None = None,
                    foreground: np.ndarray | None = None) -> None:
@@ -87,10 +101,10 @@ def write_overlays(info: VideoInfo, start: int, skel: Skeleton2D, tracks: Tracks
         for t, frame in enumerate(iter_frames(info, start, start + n)):
             img = draw_frame(frame, skel, tracks, t, zoom, foreground)
             if t == 0:
-                fd, tmp_png = tempfile.mkstemp(suffix=".png", dir=os.path.dirname(os.path.abspath(png_path)))
-                os.close(fd)
-                cv2.imwrite(tmp_png, img)
-                publish(tmp_png, png_path)
+                ok, png = cv2.imencode(".png", img)
+                if not ok:
+                    raise RuntimeError("OpenCV could not encode the overlay as PNG")
+                atomic_write_bytes(png_path, png.tobytes())          # a full disk raises here, nothing published
                 if mp4_path is None:
                     return
                 fd, tmp = tempfile.mkstemp(suffix=".mp4", dir=os.path.dirname(os.path.abspath(mp4_path)))
@@ -104,6 +118,7 @@ def write_overlays(info: VideoInfo, start: int, skel: Skeleton2D, tracks: Tracks
         assert writer is not None and tmp is not None and mp4_path is not None
         writer.release()
         writer = None
+        _check_written(tmp, n, mp4_path)
         publish(tmp, mp4_path)
         tmp = None
     finally:
