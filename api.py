@@ -24,7 +24,6 @@ import os
 from typing import Any
 
 from .core import formats, pipeline
-from .core.detail.twigs import TwigParams
 from .core.errors import Cancelled, InputError
 from .core.progress import ProgressFn
 from .core.reconstruct.run import Result
@@ -54,27 +53,7 @@ def settings(**kw: Any) -> pipeline.Settings:
     ``frames="0:240"``, ``height_m=10``, ``curliness=0.3``, ``bark="rough"``, ...) or one of
     :data:`SHORTCUTS` (``twigs=2``, ``conifer=True``, ``leaves=False``, ``leaf_density=0.5``, ...).
     Unset keywords keep the product's defaults (those of the panel and the CLI)."""
-    s = pipeline.Settings()
-    fields = {f.name for f in dataclasses.fields(s)}
-    for key, value in kw.items():
-        if key == "twigs":
-            s.twigs = TwigParams(depth=int(value)) if not isinstance(value, TwigParams) else value
-        elif key == "conifer":
-            if value:
-                s.form = "conifer"
-        elif key == "solver":
-            s.motion.solver = str(value)
-        elif key == "leaves" and not (value is None or dataclasses.is_dataclass(value)):
-            if not value:
-                s.leaves = None
-        elif key in ("leaf_density", "leaf_cards", "flutter_hz", "leaf_colour"):
-            if s.leaves is not None:
-                setattr(s.leaves, {"leaf_density": "density", "leaf_cards": "cards",
-                                   "leaf_colour": "colour"}.get(key, key), value)
-        elif key in fields:
-            setattr(s, key, value)
-        else:
-            raise InputError(f"unknown setting '{key}'; use one of {', '.join(sorted(fields | set(SHORTCUTS)))}")
+    s = pipeline.from_flat(kw)
     pipeline.check_settings(s)
     return s
 

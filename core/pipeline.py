@@ -77,6 +77,53 @@ class Settings(ReconstructSettings):
     limb_species: str = ""          # the species grown (library name or .json file; "": the form's own)
 
 
+#: flat option names (the batch's, the panel's, the API's keywords) that set a nested setting
+NESTED = {"twigs": ("twigs", "depth"), "twig_depth": ("twigs", "depth"), "solver": ("motion", "solver"),
+          "sigma_track": ("motion", "sigma_track"), "sigma_shape": ("motion", "sigma_shape"),
+          "max_step": ("motion", "max_step"), "max_total": ("motion", "max_total"),
+          "candidates": ("lift", "candidates"), "leaf_density": ("leaves", "density"),
+          "leaf_cards": ("leaves", "cards"), "flutter_hz": ("leaves", "flutter_hz"),
+          "flutter_gain": ("leaves", "flutter_gain"), "max_leaf_clusters": ("leaves", "max_clusters"),
+          "leaf_colour": ("leaves", "colour")}
+#: flat switches: ``conifer`` (the form when it is ``auto``), ``leaves`` (False: bare branches)
+SWITCHES = ("conifer", "leaves")
+
+
+def from_flat(flat: dict) -> Settings:
+    """The one way flat options become :class:`Settings`, for the batch job, the panel and the API:
+    a field of ``Settings`` by its name (``levels``, ``frames``, ``height_m``, ``form``…), a nested
+    one by its flat name (:data:`NESTED`: ``twigs=2``, ``solver``, ``leaf_density``…; a whole
+    ``TwigParams`` or ``LeafParams`` under ``twigs`` / ``leaves`` too), ``conifer=True`` (the
+    conifer form unless a form is given) and ``leaves=False`` (bare branches). Unset names keep the
+    product's defaults; an unknown name is an :class:`InputError`. Not range-checked here
+    (:func:`check_settings`)."""
+    s = Settings()
+    names = {f for f in s.__dataclass_fields__}
+    unknown = [k for k in flat if k not in names and k not in NESTED and k not in SWITCHES]
+    if unknown:
+        raise InputError(f"unknown setting '{unknown[0]}'; use one of {', '.join(sorted(names | set(NESTED)))}")
+    leaves = flat.get("leaves", True)
+    if isinstance(leaves, LeafParams):
+        s.leaves = leaves
+    elif leaves is None or not leaves:
+        s.leaves = None
+    for key, value in flat.items():
+        if key in SWITCHES or (key in ("twigs", "leaves") and not isinstance(value, (int, float, str))):
+            continue
+        if key in NESTED:
+            group, attr = NESTED[key]
+            target = getattr(s, group)
+            if target is not None:                      # leaf options of a bare tree are moot
+                setattr(target, attr, int(value) if attr == "depth" else value)
+        else:
+            setattr(s, key, value)
+    if isinstance(flat.get("twigs"), TwigParams):
+        s.twigs = flat["twigs"]
+    if flat.get("conifer") and flat.get("form", "auto") == "auto":
+        s.form = "conifer"
+    return s
+
+
 def check_settings(s: Settings) -> None:
     """Raise :class:`InputError` for the first setting out of range (2D stages, twigs, mesh, leaves)."""
     check_reconstruct(s)

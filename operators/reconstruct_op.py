@@ -39,32 +39,23 @@ def cache_dir() -> str:
 
 
 def settings_from(props) -> pipeline.Settings:
-    """Core settings from the panel's properties (tracking is cached per video and settings)."""
-    s = pipeline.Settings(levels=props.levels, skeleton=props.skeleton_kind, fold_alpha=props.fold_alpha,
-                          scale=props.scale,
-                          frames=frame_range(props) if props.use_frame_range else None,
-                          height_m=props.height_m, cache_dir=cache_dir())
-    s.form = "conifer" if props.conifer and props.form == "auto" else props.form
-    s.limbs = props.limbs
+    """Core settings from the panel's properties, through the one flat-options reader the batch and
+    the API use (:func:`core.pipeline.from_flat`); tracking is cached per video and settings."""
     spec = props.limb_species.strip()
-    s.limb_species = bpy.path.abspath(spec) if spec.lower().endswith(".json") else spec
-    s.lift.candidates = props.candidates
-    s.motion.solver = props.solver
-    s.motion.sigma_track = props.sigma_track
-    s.motion.sigma_shape = props.sigma_shape
-    s.motion.max_step = props.max_step
-    s.motion.max_total = props.max_total
-    s.twigs.depth = props.twig_depth
-    s.fit_branches = props.fit_branches
-    s.curliness, s.bark = props.curliness, props.bark
+    flat = dict(levels=props.levels, skeleton=props.skeleton_kind, fold_alpha=props.fold_alpha, scale=props.scale,
+                frames=frame_range(props) if props.use_frame_range else None, height_m=props.height_m,
+                cache_dir=cache_dir(), form=props.form, conifer=props.conifer, limbs=props.limbs,
+                limb_species=bpy.path.abspath(spec) if spec.lower().endswith(".json") else spec,
+                candidates=props.candidates, solver=props.solver, sigma_track=props.sigma_track,
+                sigma_shape=props.sigma_shape, max_step=props.max_step, max_total=props.max_total,
+                twigs=props.twig_depth, fit_branches=props.fit_branches, curliness=props.curliness, bark=props.bark,
+                leaves=props.build_leaves)
     if props.build_leaves:
-        s.leaves.density, s.leaves.cards = props.leaf_density, props.leaf_cards
-        s.leaves.max_clusters = props.max_leaf_clusters
-        s.leaves.flutter_hz, s.leaves.flutter_gain = props.flutter_hz, props.flutter_gain
-        s.leaves.colour = leaf_colour_setting(props.leaf_colour_mode, props.leaf_colour_custom)
-    else:
-        s.leaves = None
-    return s
+        flat.update(leaf_density=props.leaf_density, leaf_cards=props.leaf_cards,
+                    max_leaf_clusters=props.max_leaf_clusters, flutter_hz=props.flutter_hz,
+                    flutter_gain=props.flutter_gain,
+                    leaf_colour=leaf_colour_setting(props.leaf_colour_mode, props.leaf_colour_custom))
+    return pipeline.from_flat(flat)
 
 
 def frame_range(props) -> str:

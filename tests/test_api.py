@@ -63,8 +63,8 @@ def test_settings_are_the_products_and_bad_ones_are_refused():
     assert (s.twigs.depth, s.curliness, s.bark, s.levels) == (2, 0.3, "rough", 6)
     assert api.settings(leaves=False).leaves is None
     assert api.settings(conifer=True, solver="deterministic").motion.solver == "deterministic"
-    with pytest.raises(api.InputError, match="unknown setting 'twig_depth'"):
-        api.settings(twig_depth=2)
+    with pytest.raises(api.InputError, match="unknown setting 'twig_count'"):
+        api.settings(twig_count=2)
     with pytest.raises(api.InputError, match="levels 12 out of range; use 2..9"):
         api.settings(levels=12)
     with pytest.raises(api.InputError, match="unknown bark 'bumpy'"):
