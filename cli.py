@@ -69,6 +69,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="(required with a VIDEO) tree outline in frame 1: JSON list of [x, y] pixel points, a mask "
                         "image (white = tree), or 'auto' (what sways in the first seconds)")
     p.add_argument("--out", help="(required) output folder (created if missing); it gets report.json and job.log")
+    p.add_argument("--tree", metavar="TREE3D.npz",
+                   help="instead of a VIDEO: build the Blender outputs (--gltf, --fbx, ...) of a tree an earlier "
+                        "job saved (its tree3d.npz), the exports step alone (a farm runs the video on any worker "
+                        "and this on Blender workers)")
     p.add_argument("--job", metavar="JOB.json",
                    help="the job as a file: a JSON object of these options by name (video, outline, out, gltf, "
                         "bones, ...; true for a switch); only --force, --dry-run and --quiet may be added on the line")
@@ -492,7 +496,7 @@ def _write_tree(args, res, tree, out: str, outputs, wanted, exports: bool, cb) -
 
 
 #: options that are not the job's settings (where it goes, how it talks, what to do with a done one)
-NOT_SETTINGS = ("out", "video", "outline", "job", "force", "quiet", "dry_run", "record", "begun", "farm",
+NOT_SETTINGS = ("out", "video", "outline", "tree", "job", "force", "quiet", "dry_run", "record", "begun", "farm",
                 "scheduler", "workers", "job_timeout", "blender")
 #: errors of the disk a job writes to: the user's to fix (exit 2), not ours
 USERS_DISK = (errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EFBIG)
@@ -561,7 +565,7 @@ def _record(args, argv: list[str]) -> JobRecord:
     if args.outline == "auto":
         settings["outline"] = "auto"
     return JobRecord(list(argv), settings, identity.settings_hash(settings), __version__,
-                     input=identity.input_identity(args.video, args.outline))
+                     input=identity.input_identity(args.video or args.tree, args.outline))
 
 
 class _Tee:
@@ -578,6 +582,30 @@ class _Tee:
         return getattr(self._stream, name)
 
 
+def _exports_only(args) -> int:
+    """``--tree DIR/tree3d.npz --out DIR2 --gltf ...``: the Blender outputs of a saved tree."""
+    if args.video or args.outline or args.generate is not None:
+        raise InputError("--tree builds the outputs of a saved tree; drop the VIDEO, --outline and --generate")
+    if not os.path.isfile(args.tree):
+        raise InputError(f"tree file '{args.tree}' does not exist; give a tree3d.npz an earlier job wrote")
+    wanted, files = _wanted(args)
+    if not files:
+        raise InputError(f"--tree builds the Blender outputs; add one of {', '.join('--' + f.flag for f in FORMATS)}")
+    _check_leaf_image(args.leaf_image)
+    _check_out(args.out, files + _game(args).files(), args.force)
+    outputs = _blender_outputs()
+    outputs.check_wanted(wanted)
+    tree = api.load_tree(args.tree)
+    _begin(args)
+    args.record.add(trees=1, nodes=tree.n_nodes, leaf_clusters=tree.leaves.count if tree.leaves is not None else 0)
+    args.record.timed(None)("blender outputs", 0.0)
+    outputs.write_outputs(tree, args.out, wanted, overwrite=args.force, leaf_image=args.leaf_image,
+                          report=lambda m: sys.stderr.write(m + "\n"), loop_s=args.loop, game=_game(args),
+                          stats=args.record.counts)
+    sys.stderr.write(f"done: the outputs of {args.tree} -> {args.out}\n")
+    return 0
+
+
 def _begin(args) -> None:
     """The work starts: the folder gets a ``running`` report (a killed run leaves it saying so)."""
     os.makedirs(args.out, exist_ok=True)
@@ -589,6 +617,8 @@ def _run(args) -> int:
     """The job of ``args`` (parsed, its engine preset applied, its record set), after the checks
     every job takes."""
     _check_loop(args)
+    if args.tree:
+        return _exports_only(args)
     gen = _plan_generation(args)        # None without --generate
     if args.video is None:
         return _generate_only(args, gen)

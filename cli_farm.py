@@ -16,7 +16,7 @@ from .core.farm import identity, inputs, runner
 from .core.farm.report import read_report
 
 #: the farm's own options: not handed to its jobs
-FARM_ONLY = ("video", "outline", "out", "farm", "scheduler", "workers", "job_timeout", "blender", "dry_run", "job",
+FARM_ONLY = ("video", "outline", "tree", "out", "farm", "scheduler", "workers", "job_timeout", "blender", "dry_run", "job",
              "quiet", "record", "begun")
 BATCH = os.path.join(os.path.dirname(os.path.abspath(__file__)), "batch.py")
 
@@ -38,8 +38,8 @@ def job_options(args) -> list[str]:
 
 
 def _check(args) -> None:
-    if args.video is not None or args.job:
-        raise InputError("--farm takes its videos from FOLDER|LIST.txt|JOBS.json; drop the VIDEO / --job")
+    if args.video is not None or args.job or args.tree:
+        raise InputError("--farm takes its videos from FOLDER|LIST.txt|JOBS.json; drop the VIDEO / --job / --tree")
     if not args.out:
         raise InputError("--farm needs --out DIR (each job writes DIR/<stem>/)")
     if args.workers is not None and args.workers < 1:

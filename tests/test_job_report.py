@@ -159,3 +159,23 @@ def test_job_argv_follows_the_parser():
     assert argv[argv.index("--leaf-density") + 1] == "0.5"
     args = cli.build_parser().parse_args(argv)
     assert args.bones == 64 and args.loop == 10.0 and args.gltf and args.leaf_density == 0.5
+
+
+def test_the_exports_step_runs_alone_from_a_saved_tree(tmp_path):
+    """A farm can run the video on any worker and the Blender outputs on Blender workers: the
+    second step builds them from the first's tree3d.npz, with its own report."""
+    core, exports = tmp_path / "core", tmp_path / "exports"
+    code, _, err = run(VIDEO, "--outline", OUTLINE, "--out", core, *QUICK, "--quiet")
+    assert code == 0, err
+    code, _, err = run("--tree", core / "tree3d.npz", "--out", exports, "--gltf", "--bones", "16", "--quiet")
+    assert code == 0, err
+    doc = check_report(exports)
+    assert doc["status"] == "ok" and [o["path"] for o in doc["outputs"]] == ["tree.glb"]
+    assert doc["counts"]["bones"] == 16 and doc["counts"]["triangles"] > 1000
+    assert doc["input"]["sha256"] == hashlib.sha256((core / "tree3d.npz").read_bytes()).hexdigest()
+    assert run("--tree", core / "tree3d.npz", "--out", exports, "--gltf", "--bones", "16")[2].startswith("skipped:")
+    for args, needle in (([], "add one of"), (["--gltf", "--outline", OUTLINE], "drop the VIDEO"),):
+        code, _, err = run("--tree", core / "tree3d.npz", "--out", tmp_path / "x", *args)
+        assert code == 2 and needle in err and len(err.strip().splitlines()) == 1, err
+    code, _, err = run("--tree", tmp_path / "none.npz", "--out", tmp_path / "x", "--gltf")
+    assert code == 2 and "does not exist" in err
