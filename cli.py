@@ -641,7 +641,8 @@ def main(argv: list[str] | None = None) -> int:
         try:
             if args.farm:
                 from . import cli_farm
-                return cli_farm.main(args, argv)
+                return cli_farm.main(args, argv, SimpleNamespace(build_parser=build_parser, job_argv=job_argv,
+                                                                 _apply_engine=_apply_engine, _record=_record))
             if args.job:
                 args = _args_from_job(args)
                 args.begun = False

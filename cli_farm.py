@@ -9,8 +9,8 @@ from __future__ import annotations
 import os
 import sys
 import time
+from types import SimpleNamespace
 
-from . import cli
 from .core.errors import InputError
 from .core.farm import identity, inputs, runner
 from .core.farm.report import read_report
@@ -21,7 +21,7 @@ FARM_ONLY = ("video", "outline", "tree", "out", "farm", "scheduler", "workers", 
 BATCH = os.path.join(os.path.dirname(os.path.abspath(__file__)), "batch.py")
 
 
-def job_options(args) -> list[str]:
+def job_options(args, cli: SimpleNamespace) -> list[str]:
     """The usual options given on the farm's line (those that differ from the defaults), as a
     command line every job gets."""
     parser = cli.build_parser()
@@ -52,7 +52,7 @@ def _check(args) -> None:
         raise InputError(f"--out '{args.out}' is a file; give a folder")
 
 
-def _decision(job: inputs.FarmJob, force: bool) -> identity.Decision:
+def _decision(job: inputs.FarmJob, force: bool, cli: SimpleNamespace) -> identity.Decision:
     """Run, redo or skip ``job``, from the report its folder holds (the job's own rule)."""
     prior = read_report(job.out) if os.path.isdir(job.out) else None
     if prior is None:
@@ -66,10 +66,12 @@ def _decision(job: inputs.FarmJob, force: bool) -> identity.Decision:
     return identity.decide(prior, rec.settings_sha256, rec.input, force)
 
 
-def main(args, argv: list[str]) -> int:
-    """The farm command (module docstring); ``args`` parsed by :func:`cli.build_parser`."""
+def main(args, argv: list[str], cli: SimpleNamespace) -> int:
+    """The farm command (module docstring); ``args`` parsed by ``cli.build_parser``; ``cli`` the
+    batch's ``build_parser``, ``job_argv``, ``_apply_engine`` and ``_record`` (handed in: the batch
+    imports the farm, not the other way)."""
     _check(args)
-    options = job_options(args)
+    options = job_options(args, cli)
     entries = inputs.read_source(args.farm)
 
     def to_argv(entry: dict) -> list[str]:
@@ -78,7 +80,7 @@ def main(args, argv: list[str]) -> int:
         return head + options + own[len(head):]
 
     jobs = inputs.plan_jobs(entries, args.out, args.outline, to_argv)
-    decisions = [_decision(j, args.force) for j in jobs]
+    decisions = [_decision(j, args.force, cli) for j in jobs]
     if args.dry_run:
         for j, d in zip(jobs, decisions):
             print(f"{d.action}: {j.name}: {d.why}")

@@ -62,7 +62,9 @@ def test_a_hidden_trunk_rises_from_the_ground_to_where_the_limbs_meet(tmp_path):
         fork_err = abs(pos[-1, 1] - true_trunk[-1, 1]) / H
         dist = float(dist_to_polyline(pos, true_trunk).max() / H)
         lines.append(f"{seed:<6}{base_err:9.3f}{fork_err:9.3f}{dist:11.3f}{len(chain):6d}")
-        assert len(chain) >= 4 and np.ptp(pos[:, 0]) <= 1.0, lines[-1]        # one vertical chain
+        # one vertical chain: its nodes within 1 % of the height in x (1 px on one CPU, 2 px at the
+        # fork on another, whose OpenCV draws the sample's frames a little differently)
+        assert len(chain) >= 4 and np.ptp(pos[:, 0]) <= 0.01 * H, lines[-1]
         assert base_err <= BASE_BAR and fork_err <= FORK_BAR and dist <= TRUNK_X_BAR, lines[-1]
         tree = pipeline.build_3d(res, plain_settings())
         assert tree.meta["bark_colour"]["source"] == "default"                 # no foliage-green bark

@@ -46,6 +46,13 @@ def psnr_blurred(a: np.ndarray, b: np.ndarray, sigma: float = 1.5) -> float:
 OLD_TRUTH = {"broad": "9714b5ece1d58138", "conifer": "512c762a04b26637", "sparse": "7ce8cdeed4e22814",
              "hard": "1c6250370496a6b6", "gentle": "e1e6229b645af981", "grey": "01f930b6cd957f9d",
              "dense": "3d003323a825bc1d"}
+#: the same frames drawn on another CPU (AMD EPYC, no AVX-512: OpenCV's drawing takes other SIMD
+#: paths there), recorded on it with the code before the wind options (b8eda87)
+OLD_DRAWN_OTHER_CPU = {
+    "4.11.0": {"broad": "1822b1ea8feeb22f", "conifer": "1ed25b8b8c3d0704", "sparse": "253e16c45d5f56ec",
+               "hard": "d0146351391486ce", "gentle": "4c6fea4bf7ffc932", "grey": "8c2773455c748cf0",
+               "dense": "c222091868999764"},
+}
 OLD_DRAWN = {
     "4.11.0": {"broad": "7068fd0839879cbe", "conifer": "93dbf0bbdfd399a5", "sparse": "253e16c45d5f56ec",
                "hard": "d0146351391486ce", "gentle": "09bae369c6393d70", "grey": "8c2773455c748cf0",
@@ -77,7 +84,8 @@ def test_first_sample_set_is_byte_identical(variant):
         hd.update(st.render_frame(sc, f).tobytes())
     assert cv2.__version__ in OLD_DRAWN, (f"no drawn reference for OpenCV {cv2.__version__}: record one by running "
                                           "this hash on the commit before the wind options (git log sample_videos)")
-    assert hd.hexdigest()[:16] == OLD_DRAWN[cv2.__version__][variant]
+    assert hd.hexdigest()[:16] in (OLD_DRAWN[cv2.__version__][variant],
+                                   OLD_DRAWN_OTHER_CPU.get(cv2.__version__, {}).get(variant))
 
 
 @pytest.mark.parametrize("name", ["broad", "sparse"])
