@@ -3,8 +3,6 @@ schema, docs/report.schema.json (JSON Schema 2020-12, with the jsonschema packag
 import json
 import os
 
-import jsonschema
-
 from samples import ROOT
 
 SCHEMA_PATH = os.path.join(ROOT, "docs", "report.schema.json")
@@ -12,6 +10,7 @@ SCHEMA_PATH = os.path.join(ROOT, "docs", "report.schema.json")
 
 def check_report(folder) -> dict:
     """``folder/report.json``, valid against the schema, and its ``job.log`` beside it."""
+    import jsonschema  # here, not at import: Blender's Python collects these modules without it
     with open(SCHEMA_PATH, encoding="utf-8") as fh:
         schema = json.load(fh)
     with open(os.path.join(folder, "report.json"), encoding="utf-8") as fh:
