@@ -368,9 +368,7 @@ def _run_generation(args, plan, outputs, wanted) -> int:
         def write(tree, folder):
             tree.meta["mesh"] = {"curliness": float(args.curliness), "bark": args.bark,     # the branch mesh's look
                                  "seed": int(tree.meta.get("seed", 0))}
-            return outputs.write_outputs(tree, folder, wanted, overwrite=args.force, fresh_scene=True,
-                                         report=log, leaf_image=args.leaf_image, loop_s=args.loop,
-                                         game=_game(args), stats=args.record.counts)
+            return _write_blender(args, outputs, tree, folder, wanted, log)
     t0 = time.monotonic()
     entries = gb.generate_trees(plan.model, plan.species_label, plan.envelope, plan.envelope_label, plan.req,
                                 args.out, write, args.record.timed(_progress_printer(args.quiet)), log)
@@ -463,6 +461,14 @@ def _reconstruct(args, gen) -> int:
     return 0
 
 
+def _write_blender(args, outputs, tree, out: str, wanted: dict, report=None) -> dict:
+    """The Blender outputs of ``tree`` in ``out`` with the line's look, loop and game options; the
+    built rig's counts go to the job's record (every batch path writes them through here)."""
+    return outputs.write_outputs(tree, out, wanted, overwrite=args.force, leaf_image=args.leaf_image,
+                                 report=report or (lambda m: sys.stderr.write(m + "\n")), loop_s=args.loop,
+                                 game=_game(args), stats=args.record.counts)
+
+
 def _write_tree(args, res, tree, out: str, outputs, wanted, exports: bool, cb) -> None:
     """Write one reconstructed tree's files (its 2D result ``res``, its 3D ``tree``) into ``out``."""
     os.makedirs(out, exist_ok=True)
@@ -486,18 +492,17 @@ def _write_tree(args, res, tree, out: str, outputs, wanted, exports: bool, cb) -
                            res.foreground.mask if res.foreground is not None else None)
     if outputs is not None and exports:              # with --generate the exports are per generated tree
         cb("blender outputs", 0.0)
-        outputs.write_outputs(tree, out, wanted, overwrite=args.force, leaf_image=args.leaf_image,
-                              report=lambda m: sys.stderr.write(m + "\n"), loop_s=args.loop, game=_game(args),
-                              stats=args.record.counts)
+        _write_blender(args, outputs, tree, out, wanted)
     conf = res.skeleton.confidence
     sure = "" if conf is None else f", {node_motion.confidence_summary(conf)}"
     sys.stderr.write(f"done: {res.skeleton.n_nodes} nodes, {res.tracks.n_tracks} tracks, "
                      f"{res.tracks.n_frames} frames{sure} -> {out}\n")
 
 
+#: the farm command's own options (never a job's)
+FARM_OPTIONS = ("farm", "scheduler", "workers", "job_timeout", "blender")
 #: options that are not the job's settings (where it goes, how it talks, what to do with a done one)
-NOT_SETTINGS = ("out", "video", "outline", "tree", "job", "force", "quiet", "dry_run", "record", "begun", "farm",
-                "scheduler", "workers", "job_timeout", "blender")
+NOT_SETTINGS = ("out", "video", "outline", "tree", "job", "force", "quiet", "dry_run", "record", "begun") + FARM_OPTIONS
 #: errors of the disk a job writes to: the user's to fix (exit 2), not ours
 USERS_DISK = (errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EFBIG)
 #: the options --job allows beside it on the line
@@ -515,7 +520,7 @@ def job_argv(doc, path: str) -> list[str]:
     for key, value in doc.items():
         dest = str(key).replace("-", "_")
         a = actions.get(dest)
-        if a is None or dest in ("dry_run", "force", "quiet", "farm", "scheduler", "workers", "job_timeout", "blender"):
+        if a is None or dest in ("dry_run", "force", "quiet") + FARM_OPTIONS:
             raise InputError(f"unknown key '{key}' in {path}; use the batch options' names (video, outline, out, "
                              "gltf, bones, ...) and give --force/--dry-run/--quiet on the line")
         flag = a.option_strings[0] if a.option_strings else None
@@ -599,9 +604,7 @@ def _exports_only(args) -> int:
     _begin(args)
     args.record.add(trees=1, nodes=tree.n_nodes, leaf_clusters=tree.leaves.count if tree.leaves is not None else 0)
     args.record.timed(None)("blender outputs", 0.0)
-    outputs.write_outputs(tree, args.out, wanted, overwrite=args.force, leaf_image=args.leaf_image,
-                          report=lambda m: sys.stderr.write(m + "\n"), loop_s=args.loop, game=_game(args),
-                          stats=args.record.counts)
+    _write_blender(args, outputs, tree, args.out, wanted)
     sys.stderr.write(f"done: the outputs of {args.tree} -> {args.out}\n")
     return 0
 

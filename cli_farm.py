@@ -16,8 +16,8 @@ from .core.farm import identity, inputs, runner
 from .core.farm.report import read_report
 
 #: the farm's own options: not handed to its jobs
-FARM_ONLY = ("video", "outline", "tree", "out", "farm", "scheduler", "workers", "job_timeout", "blender", "dry_run", "job",
-             "quiet", "record", "begun")
+FARM_ONLY = ("video", "outline", "tree", "out", "dry_run", "job", "quiet", "record", "begun",
+             "farm", "scheduler", "workers", "job_timeout", "blender")
 BATCH = os.path.join(os.path.dirname(os.path.abspath(__file__)), "batch.py")
 
 
