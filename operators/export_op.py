@@ -141,9 +141,12 @@ def _background(items, names: list[str], sizes: list[float], fmt: str, overwrite
     Raises InputError naming the tree that failed."""
     jobs = [_staged_tree(coll, path, name, staged) for (coll, path), name in zip(items, names)]
     games = [fmt == "GLB" and game.is_game_tree(coll) for coll, _ in items]
-    for part in export_process.split(sizes):
+    parts = export_process.split(sizes)
+    for k, part in enumerate(parts):        # one process started a tick (each copies its trees to a .blend)
         running.append([export_process.start(fmt, [jobs[i] for i in part], overwrite, fbx_extra,
                                              [games[i] for i in part]), part, 0])
+        if k + 1 < len(parts):
+            yield f"starting the background exports ({k + 1}/{len(parts)})", 0.0
     n, finished, so_far = len(items), 0, 0.0
     while running:
         for entry in list(running):

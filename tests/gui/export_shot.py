@@ -22,7 +22,7 @@ props = register_with_sample()
 for ob in list(bpy.data.objects):          # an empty stage for the trees
     bpy.data.objects.remove(ob)
 props.species_source, props.species_name = "LIBRARY", "broad"
-props.gen_nodes, props.gen_frames, props.gen_height = 120, 48, 8.0
+props.gen_nodes, props.gen_frames, props.gen_height = 120, 24, 8.0
 print("tree:", bpy.ops.tree_video.generate("EXEC_DEFAULT"), flush=True)
 props.forest_count, props.forest_spacing, props.forest_width, props.forest_depth = 3, 9.0, 24.0, 12.0
 bpy.context.scene.cursor.location = (0.0, 14.0, 0.0)
@@ -65,7 +65,8 @@ def start_export():
     print(f"export invoke returned {result} after {time.monotonic() - t:.2f} s", flush=True)
     state["t0"] = time.monotonic()
     # the redraws while it runs (issue 32: an export froze Blender for 6-21 s a tree): a draw
-    # handler stamps every viewport draw, a timer asks for one every 0.05 s
+    # handler stamps every viewport draw, a timer asks for one every 0.1 s (a progress display's
+    # rate; at 50 Hz software GL took the CPU the exports need)
     state["draws"] = []
     state["handler"] = bpy.types.SpaceView3D.draw_handler_add(lambda: state["draws"].append(time.monotonic()),
                                                               (), "WINDOW", "POST_PIXEL")
@@ -81,13 +82,17 @@ def watch():
     if status:
         if not state["seen"] or state["seen"][-1][0] != status:
             state["seen"].append((status, round(wm.tree_video_progress)))
-        return 0.02
+            state.setdefault("when", []).append(round(time.monotonic() - state["t0"], 2))
+        return 0.1
     if time.monotonic() - state["t0"] < 0.5:
-        return 0.02
+        return 0.1
     print(f"export stages seen: {state['seen']}", flush=True)
     bpy.types.SpaceView3D.draw_handler_remove(state["handler"], "WINDOW")
     stamps = [state["t0"]] + [t for t in state["draws"] if t >= state["t0"]] + [time.monotonic()]
-    gap = max(b - a for a, b in zip(stamps, stamps[1:]))
+    gaps = [b - a for a, b in zip(stamps, stamps[1:])]
+    gap = max(gaps)
+    at = stamps[gaps.index(gap)] - state["t0"]
+    print(f"export: longest gap starts {at:.2f} s in; stages began at {state.get('when')}", flush=True)
     print(f"export: {len(stamps) - 2} viewport draws in {stamps[-1] - stamps[0]:.1f} s, longest gap {gap:.2f} s", flush=True)
     print(f"redraw gaps under 1 s: {gap < 1.0}", flush=True)
     files = sorted(os.listdir(OUT)) if os.path.isdir(OUT) else []
