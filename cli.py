@@ -101,6 +101,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--limb-species", default=S().limb_species, metavar="NAME|FILE.json",
                    help="the species grown for --limbs (a library name or a species file; default: the library's "
                         "species of the tree's form)")
+    p.add_argument("--depth", choices=spec(S, "depth").choices, default=_default(S, "depth"),
+                   help="where the 3D lift takes the depth one view cannot show: learned (default: a network "
+                        "trained on synthetic trees predicts from frame 1 how far each branch and the crown reach "
+                        "from the trunk's plane) or envelope (the outline turned about the trunk, as the paper)")
     p.add_argument("--solver", choices=spec(MotionParams, "solver").choices, default=_default(MotionParams, "solver"),
                    help="3D motion solver (default probabilistic, paper §4; deterministic: sphere/line-of-sight "
                         "baseline)")
@@ -413,7 +417,7 @@ def settings_from_args(args) -> pipeline.Settings:
                         height_m=args.height, form="conifer" if args.conifer else args.form, solver=args.solver, twigs=args.twigs,
                         fit_branches=not args.no_branch_fit, curliness=args.curliness, bark=args.bark,
                         leaves=not args.no_leaves, leaf_density=args.leaf_density, leaf_cards=args.leaf_cards,
-                        flutter_hz=args.flutter_hz, leaf_colour=args.leaf_colour, limbs=args.limbs,
+                        flutter_hz=args.flutter_hz, leaf_colour=args.leaf_colour, limbs=args.limbs, depth=args.depth,
                         limb_species=args.limb_species)
 
 

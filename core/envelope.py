@@ -25,6 +25,7 @@ class Envelope:
     z: np.ndarray
     centre: np.ndarray
     radius: np.ndarray
+    depth_scale: float = 1.0       # the crown's depth / its width: 1 round, below 1 flatter (an ellipse)
 
     def at(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(centre, radius) interpolated at heights ``z``; radius 0 above and below the outline
@@ -38,12 +39,12 @@ class Envelope:
     def depth_limit(self, p: np.ndarray) -> np.ndarray:
         """Largest |depth| a point ``p (..., 3)`` may have at its x and height (NaN-free, ≥ 0)."""
         c, r = self.at(p[..., 2])
-        return np.sqrt(np.maximum(r ** 2 - (p[..., 0] - c) ** 2, 0.0))
+        return self.depth_scale * np.sqrt(np.maximum(r ** 2 - (p[..., 0] - c) ** 2, 0.0))
 
     def contains(self, p: np.ndarray, tol: float = 0.5) -> np.ndarray:
         """``(...)`` bool: inside Ω (with ``tol`` px of slack)."""
         c, r = self.at(p[..., 2])
-        return np.hypot(p[..., 0] - c, p[..., 1]) <= r + tol
+        return np.hypot(p[..., 0] - c, p[..., 1] / self.depth_scale) <= r + tol
 
     def attractors(self, n: int) -> np.ndarray:
         """About ``n`` points ``(K, 3)`` spread evenly over Ω's lateral surface (area-weighted
@@ -57,7 +58,7 @@ class Envelope:
         z = np.interp(u, cdf, self.z)
         c, r = self.at(z)
         theta = np.arange(n) * np.pi * (3 - np.sqrt(5))
-        pts = np.stack([c + r * np.cos(theta), r * np.sin(theta), z], axis=1)
+        pts = np.stack([c + r * np.cos(theta), self.depth_scale * r * np.sin(theta), z], axis=1)
         return pts[r > 0]
 
 

@@ -37,6 +37,7 @@ class TreeMeta(TypedDict, total=False):
     mesh: dict[str, Any]
     # a reconstruction (pipeline.build_3d)
     limbs: str
+    depth: dict[str, Any]
     solver: str
     loop: dict[str, Any]
     periodic: dict[str, Any]
@@ -94,6 +95,9 @@ KEYS: dict[str, Key] = {
     "limbs": Key("traced|grown|...", ("pipeline.build_3d",),
                  "the 2D skeleton's kind: grown where the crown's limbs were grown from a species "
                  "(asset.roles marks those nodes as grown limbs)"),
+    "depth": Key("{source, crown_scale}", ("pipeline.build_3d",),
+                  "where the lift took the depth (learned or envelope) and, learned, the crown's depth over "
+                  "its width the network predicted (Ω's depth scale in the lift)"),
     "periodic": Key("{frames, seconds}", ("growth.grow_tree",),
                     "a generated tree's sway repeats after these frames (whole-period frequencies): "
                     "a loop by construction, its last frame the first"),

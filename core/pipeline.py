@@ -25,6 +25,7 @@ from .params import param, same_as
 from .progress import ProgressFn, expected_seconds, stage_split, sub_progress
 from .reconstruct.branch_fit import fit_to_video, measure_branches, tree_map
 from .reconstruct.foreground import foreground
+from .reconstruct.learned_depth import DEPTH_SOURCES, measured_fit, shared_net
 from .reconstruct.lift import LiftParams, lift
 from .reconstruct.motion import MotionParams, solve_motion
 from .reconstruct.run import (
@@ -75,6 +76,9 @@ class Settings(ReconstructSettings):
     # the crown's limbs: traced, or grown from a species where the video shows no bark (generate.limbs)
     limbs: str = param("auto", choices=LIMB_SOURCES, what="limbs")
     limb_species: str = ""          # the species grown (library name or .json file; "": the form's own)
+    # where the lift takes the depth one view cannot show (issue 35): the outline's surface of
+    # revolution, or the network trained on synthetic trees (reconstruct.learned_depth)
+    depth: str = param("learned", choices=DEPTH_SOURCES, what="depth source")
 
 
 #: flat option names (the batch's, the panel's, the API's keywords) that set a nested setting
@@ -208,7 +212,12 @@ def build_3d(res: Result, s: Settings | None = None, name: str = "Tree",
             if radius_px is not None:               # onto the branches' centre lines, every frame
                 sk = replace(sk, nodes2d=(sk.nodes2d + vf.shift_px[None]).astype(np.float32))
     lift_params = s.lift if s.lift.conifer or res.form != "conifer" else replace(s.lift, conifer=True)
-    lifted = lift(sk, res.outline, lift_params, parts["lift"])
+    depth = fit_err = None
+    if s.depth == "learned" and frame is not None:      # frame 1's depths from the network
+        depth = shared_net().predict(cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY), res.outline.mask,
+                                     sk.nodes2d[0].astype(np.float64), sk.parents)
+        fit_err = measured_fit()
+    lifted = lift(sk, res.outline, lift_params, parts["lift"], depth=depth, fit=fit_err)
     base = sk.nodes2d[0, 0].astype(float)
     targets = image_to_plane(sk.nodes2d.astype(float), base)[..., [0, 2]]
     mo = solve_motion(lifted.nodes, sk.parents, sk.level, targets, s.motion, parts["motion"], sk.confidence)
@@ -223,6 +232,8 @@ def build_3d(res: Result, s: Settings | None = None, name: str = "Tree",
             "envelope": envelope_to_meta(lifted.envelope, scale),
             "mesh": {"curliness": float(s.curliness), "bark": s.bark, "seed": int(s.twigs.seed)},
             "limbs": sk.kind,                                    # traced from the video, or grown
+            "depth": {"source": "learned" if depth is not None else "envelope",
+                      "crown_scale": round(float(lifted.envelope.depth_scale), 4)},
             "base_px": [float(base[0]), float(base[1])],          # trunk base in frame 1 (x, y) px
             "video_size": [int(res.outline.mask.shape[1]), int(res.outline.mask.shape[0])]}
     tree = Tree3D(sk.parents.copy(), (mo.nodes * scale).astype(np.float32), radius, sk.level.copy(),

@@ -49,7 +49,7 @@ def settings_from(props) -> pipeline.Settings:
                 candidates=props.candidates, solver=props.solver, sigma_track=props.sigma_track,
                 sigma_shape=props.sigma_shape, max_step=props.max_step, max_total=props.max_total,
                 twigs=props.twig_depth, fit_branches=props.fit_branches, curliness=props.curliness, bark=props.bark,
-                leaves=props.build_leaves)
+                leaves=props.build_leaves, depth=props.depth_source)
     if props.build_leaves:
         flat.update(leaf_density=props.leaf_density, leaf_cards=props.leaf_cards,
                     max_leaf_clusters=props.max_leaf_clusters, flutter_hz=props.flutter_hz,

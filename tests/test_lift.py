@@ -118,3 +118,37 @@ def test_sampling_gives_variety_and_is_seeded(runs):
     b = lift.lift(res.skeleton, res.outline, lift.LiftParams(sample=True, seed=1)).nodes
     c = lift.lift(res.skeleton, res.outline, lift.LiftParams(sample=True, seed=2)).nodes
     assert np.array_equal(a, b) and not np.allclose(a, c)
+
+
+@pytest.fixture(scope="session")
+def learned_table(runs, lift_table):
+    """The lift with learned depth (issue 35: the predicted distance from the trunk's plane as each
+    push's prior, Ω scaled in depth to the predicted crown) on the same traced skeletons."""
+    import cv2
+
+    from tree_from_video.core import pipeline
+    from tree_from_video.core.reconstruct import learned_depth as ld
+    rows = {}
+    for v in BAR_VARIANTS + ("dense",):
+        res = runs[v]["traced"]
+        sk = res.skeleton
+        frame = pipeline.first_frame(res)
+        depth = ld.shared_net().predict(cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY), res.outline.mask,
+                                        sk.nodes2d[0].astype(np.float64), sk.parents)
+        L = lift.lift(sk, res.outline, lift.LiftParams(conifer=(v == "conifer")), depth=depth, fit=ld.measured_fit())
+        rows[v] = lift_scores(L.nodes, sk.parents, sk.nodes2d[0, 0], runs[v]["truth"])
+        rows[v]["inside"] = float(L.envelope.contains(L.nodes).mean())
+    lines = [f"{'variant':<9}{'envelope':>9}{'learned':>9}  (3D chamfer / the flattened truth's)"]
+    for v, r in rows.items():
+        e = lift_table[v]
+        lines.append(f"{v:<9}{e['chamfer'] / e['flat_truth']:9.2f}{r['chamfer'] / r['flat_truth']:9.2f}")
+    report.add("3D lift: envelope vs learned depth (tests/test_lift.py)", lines)
+    return rows
+
+
+def test_learned_depth_beats_the_envelope_on_average(lift_table, learned_table):
+    env = [lift_table[v]["chamfer"] / lift_table[v]["flat_truth"] for v in learned_table]
+    learned = [r["chamfer"] / r["flat_truth"] for r in learned_table.values()]
+    print(f"chamfer / flat truth: envelope {np.mean(env):.3f}, learned {np.mean(learned):.3f}")
+    assert np.mean(learned) < np.mean(env), (env, learned)
+    assert all(r["inside"] >= 0.95 for r in learned_table.values()), learned_table

@@ -144,6 +144,7 @@ class TREE_PT_reconstruction(_TreePanel, bpy.types.Panel):
         if props.skeleton_kind == "paper":
             col.prop(props, "fold_alpha")
         col.prop(props, "form")
+        col.prop(props, "depth_source")
         col.prop(props, "limbs")
         if props.limbs != "trace":
             col.prop(props, "limb_species")

@@ -32,6 +32,7 @@ CORE_FIELDS = {
     "skeleton_kind": (ReconstructSettings, "skeleton"),
     "form": (ReconstructSettings, "form"),
     "limbs": (Settings, "limbs"),
+    "depth_source": (Settings, "depth"),
     "fold_alpha": (ReconstructSettings, "fold_alpha"),
     "solver": (MotionParams, "solver"),
     "height_m": (Settings, "height_m"),
@@ -162,6 +163,13 @@ class TreeVideoSettings(bpy.types.PropertyGroup):
         name="Limb Species", default="",
         description="Species grown for the limbs: a library name (broad, conifer, sparse) or a species .json file; "
                     "empty: the library species of the tree's form")
+    depth_source: bpy.props.EnumProperty(
+        name="Depth", **_core("depth_source"),
+        items=[("envelope", "Envelope", "The outline turned about the trunk (the paper's crown envelope): branches "
+                                        "spread into a round crown"),
+               ("learned", "Learned", "A network trained on synthetic trees predicts from frame 1 how far each branch "
+                                      "and the crown reach from the trunk's plane: flat and deep crowns too")],
+        description="Where the 3D lift takes the depth a single view cannot show")
     conifer: bpy.props.BoolProperty(name="Conifer Trunk", default=False,
                                     description="Older files and presets: the same as Form › Conifer")
     candidates: bpy.props.IntProperty(name="Depth Samples", default=_L.candidates, min=4, max=256,

@@ -137,7 +137,7 @@ def envelope_from_mask(mask: np.ndarray, metres_per_px: float, base_px: np.ndarr
     env = envelope_from_outline(Outline(c.astype(np.float32), mask), np.asarray(base_px, float))
     s = float(metres_per_px)
     poly = np.stack([(c[:, 0] - base_px[0]) * s, (base_px[1] - c[:, 1]) * s], 1)
-    return ShapeEnvelope(env.z * s, env.centre * s, env.radius * s, poly, name, np.zeros(2))
+    return ShapeEnvelope(env.z * s, env.centre * s, env.radius * s, polygon=poly, name=name, offset=np.zeros(2))
 
 
 def largest_component(mask: np.ndarray) -> np.ndarray:

@@ -28,7 +28,7 @@ chains do not zig-zag.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -38,6 +38,7 @@ from ..outline import Outline
 from ..progress import ProgressFn, report
 from ..topology import chains, children_lists, topological_order
 from ..tree3d import image_to_plane
+from .learned_depth import DepthImages, crown_depth_scale, tree_height_px
 from .skeleton2d import Skeleton2D
 
 MU_RANGE = (np.pi / 6, np.pi / 3)
@@ -57,6 +58,12 @@ class LiftParams:
     conifer: bool = False
     sample: bool = False
     seed: int = 0
+    # learned depth (issue 35): the prior's width in multiples of the model's measured error
+    # (learned_depth.measured_fit)
+    depth_trust: float = 1.5
+    depth_prior: bool = True       # the predicted skeleton depth as each push's prior
+    depth_crown: bool = True       # Ω with learned depth: the outline's revolution scaled in depth to
+    #                                the predicted crown's reach (else as it is)
 
 
 @dataclass
@@ -166,14 +173,32 @@ def _edge_samples(pos: np.ndarray, parents: np.ndarray, step: float) -> tuple[np
 
 
 def lift(skel: Skeleton2D, outline: Outline, params: LiftParams | None = None,
-         progress: ProgressFn | None = None) -> Lift:
-    """Lift ``skel``'s frame 1 into 3D (see module docstring). Coordinates in px from the base."""
+         progress: ProgressFn | None = None, depth: DepthImages | None = None,
+         fit: np.ndarray | None = None) -> Lift:
+    """Lift ``skel``'s frame 1 into 3D (see module docstring). Coordinates in px from the base.
+
+    With ``depth`` (the learned depth of frame 1, :mod:`.learned_depth`, whose held-out errors are
+    ``fit (3,)`` depth / height) every push also weighs its candidates by the pushed node's
+    predicted distance from the trunk's plane ``m_i``, on either side (one view cannot tell which):
+    a prior ``exp(−(|y| − m_i)² / 2σ²)`` with ``σ = depth_trust · fit[0] · H`` (``±m_i`` among the
+    candidates); and Ω, the outline turned about its axis, is scaled in depth to the predicted
+    crown's reach (:func:`.learned_depth.crown_depth_scale`; the result keeps it as its envelope)."""
     params = params or LiftParams()
     parents = skel.parents
     N = len(parents)
     base = skel.nodes2d[0, 0].astype(np.float64)
     pos = image_to_plane(skel.nodes2d[0].astype(np.float64), base)
     env = envelope_from_outline(outline, base)
+    guess = None
+    sigma_prior = 1.0
+    if depth is not None:
+        h_px = tree_height_px(outline.mask)
+        fit = np.full(3, 0.05) if fit is None else np.asarray(fit, float)
+        if params.depth_prior:
+            guess = depth.sample(depth.distance, skel.nodes2d[0].astype(np.float64)) * h_px   # (N,) px
+            sigma_prior = max(params.depth_trust * float(fit[0]) * h_px, 0.5)
+        if params.depth_crown:
+            env = replace(env, depth_scale=crown_depth_scale(depth, env, outline.mask))
     height = max(float(pos[:, 2].max() - min(pos[:, 2].min(), 0.0)), 1.0)
     width = float(2 * env.radius.max())
     delta = params.delta_frac * width
@@ -213,7 +238,10 @@ def lift(skel: Skeleton2D, outline: Outline, params: LiftParams | None = None,
         # candidate depths for the pushed node; moved set: subtree (same offset) + chain (blend)
         # prior: uniform in [y − δ, y + δ]; δ = width / 5, but never more than the branch's own
         # length, so a short twig is not stretched out flat in depth (the prior's purpose)
-        offsets = unit * min(delta, params.max_push_ratio * float(np.linalg.norm(pos[i] - pos[j])))
+        reach = min(delta, params.max_push_ratio * float(np.linalg.norm(pos[i] - pos[j])))
+        offsets = unit * reach
+        if guess is not None:                                       # ± the predicted distance are candidates
+            offsets = np.append(offsets, np.clip(np.array([guess[i], -guess[i]]) - y0, -reach, reach))
         cand = y0 + offsets                                        # (L,)
         t_chain = arc[chain] / max(arc[i], 1e-9)                     # (C,)
         moved_idx = np.concatenate([sub, chain]).astype(int)
@@ -258,6 +286,8 @@ def lift(skel: Skeleton2D, outline: Outline, params: LiftParams | None = None,
             E = np.maximum(D_prev - d_new.sum(1), 0.0)
             glob = E / E.sum() if E.sum() > 0 else glob
         post = local * (glob if glob.sum() > 0 else 1.0) * ok
+        if guess is not None:                                       # the learned depth's prior
+            post = post * np.exp(-0.5 * ((np.abs(cand) - guess[i]) / sigma_prior) ** 2)
         if post.sum() <= 0:
             post = ok.astype(float)
         pick = rng.choice(len(cand), p=post / post.sum()) if params.sample else int(np.argmax(post))
