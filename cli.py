@@ -36,6 +36,7 @@ from .core.fileio import atomic_savez, read_json
 from .core.formats import FORMATS
 from .core.generate import batch as gb
 from .core.generate import species
+from .core.generate.photo import PhotoMotion, check_motion, check_photo, is_photo
 from .core.loop import LoopSettings
 from .core.params import spec
 from .core.reconstruct import node_motion, overlay, skeleton_io
@@ -342,8 +343,9 @@ def _plan_generation(args):
         if args.video is None:
             raise InputError("no VIDEO given: give VIDEO --outline OUTLINE.json, or --generate N --species NAME "
                              "to grow new trees")
+        photo_opts = ("species", "seconds") if is_photo(args.video) else ()     # a photo's sway
         for opt in ("species", "envelope", "audio", "frames_out", "seconds"):
-            if getattr(args, opt) is not None:
+            if getattr(args, opt) is not None and opt not in photo_opts:
                 raise InputError(f"--{opt.replace('_', '-')} only applies with --generate N; add it or drop the option")
         return None
     req = gb.GenerateRequest(count=args.generate, species=args.species, envelope=args.envelope, wind=args.wind,
@@ -437,6 +439,14 @@ def _reconstruct(args, gen) -> int:
         + (blender_files if gen is None else gb.planned_files(gen.req, blender_files, with_species=True))
     _check_leaf_image(args.leaf_image)
     settings = settings_from_args(args)
+    photo = None
+    if is_photo(args.video):            # one frame: the tree sways as its species (core/generate/photo.py)
+        check_photo(args.video)
+        photo = PhotoMotion(species=args.species or "", seconds=args.seconds or PhotoMotion().seconds,
+                            wind=args.wind, seed=args.seed)
+        check_motion(photo)
+        if photo.species:
+            gb.load_species_spec(photo.species)        # a missing or broken species file fails now
     n_trees = pipeline.count_outlines(args.video, args.outline, settings.scale, settings.frames)
     if n_trees > 1 and gen is not None:
         raise InputError(f"--generate grows trees of one reconstructed tree, and the outline holds {n_trees}; "
@@ -457,7 +467,7 @@ def _reconstruct(args, gen) -> int:
                          "time_base": "index / fps" if results[0].tracks.times is None else "frame timestamps"}
     base = os.path.splitext(os.path.basename(args.video))[0] or "Tree"
     names = [f"Tree {base}"] if n_trees == 1 else [f"Tree {base} {k + 1}" for k in range(n_trees)]
-    trees = pipeline.build_shot(results, settings, names, cb)     # one scale, each where it stands
+    trees = pipeline.build_shot(results, settings, names, cb, photo=photo)     # one scale, each where it stands
     for res, tree, folder in zip(results, trees, folders):
         _write_tree(args, res, tree, folder, outputs, wanted, gen is None, cb)
     if gen is not None:

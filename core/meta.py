@@ -38,6 +38,7 @@ class TreeMeta(TypedDict, total=False):
     # a reconstruction (pipeline.build_3d)
     limbs: str
     depth: dict[str, Any]
+    photo: dict[str, Any]
     solver: str
     loop: dict[str, Any]
     periodic: dict[str, Any]
@@ -95,6 +96,8 @@ KEYS: dict[str, Key] = {
     "limbs": Key("traced|grown|...", ("pipeline.build_3d",),
                  "the 2D skeleton's kind: grown where the crown's limbs were grown from a species "
                  "(asset.roles marks those nodes as grown limbs)"),
+    "photo": Key("{species, seconds, wind, seed}", ("pipeline.build_3d",),
+                  "a tree from one photo: the species whose sway moves it (core/generate/photo.py)"),
     "depth": Key("{source, crown_scale}", ("pipeline.build_3d",),
                   "where the lift took the depth (learned or envelope) and, learned, the crown's depth over "
                   "its width the network predicted (Ω's depth scale in the lift)"),

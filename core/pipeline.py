@@ -20,6 +20,8 @@ from .detail.twigs import TwigParams, add_twigs, check_twig_params
 from .envelope import envelope_to_meta
 from .errors import InputError
 from .generate.limbs import LIMB_SOURCES, grown_limbs, limb_species
+from .generate.photo import PhotoMotion, species_for
+from .generate.photo import sway as photo_sway
 from .meta import TreeMeta
 from .params import param, same_as
 from .progress import ProgressFn, expected_seconds, stage_split, sub_progress
@@ -191,9 +193,11 @@ def share_2d(n_frames: int) -> float:
 
 
 def build_3d(res: Result, s: Settings | None = None, name: str = "Tree",
-             progress: ProgressFn | None = None, metres_per_px: float | None = None) -> Tree3D:
+             progress: ProgressFn | None = None, metres_per_px: float | None = None,
+             photo: PhotoMotion | None = None) -> Tree3D:
     """Lift the 2D skeleton to 3D and solve its motion; the tree in metres, ``height_m`` tall (or
-    at ``metres_per_px``: a shot of several trees shares one scale, :func:`build_shot`)."""
+    at ``metres_per_px``: a shot of several trees shares one scale, :func:`build_shot`). With
+    ``photo`` (a one-frame video: a photo) the motion is a species' sway instead (:mod:`.generate.photo`)."""
     s = s or Settings()
     if not s.height_m > 0:
         raise InputError(f"tree height {s.height_m} m is not positive; give e.g. 10")
@@ -221,6 +225,10 @@ def build_3d(res: Result, s: Settings | None = None, name: str = "Tree",
     base = sk.nodes2d[0, 0].astype(float)
     targets = image_to_plane(sk.nodes2d.astype(float), base)[..., [0, 2]]
     mo = solve_motion(lifted.nodes, sk.parents, sk.level, targets, s.motion, parts["motion"], sk.confidence)
+    nodes, times = mo.nodes, uneven_times(sk.times, sk.fps)
+    if photo is not None:                         # a photo: its species' sway on the traced rest pose
+        model = species_for(photo, res.form)
+        nodes, times = photo_sway(model, sk.parents, mo.nodes[0], photo, sk.fps), None
     height_px = max(float(lifted.envelope.z.max()), float(lifted.nodes[:, 2].max()), 1.0)
     scale = s.height_m / height_px if metres_per_px is None else float(metres_per_px)
     if radius_px is not None:
@@ -232,12 +240,14 @@ def build_3d(res: Result, s: Settings | None = None, name: str = "Tree",
             "envelope": envelope_to_meta(lifted.envelope, scale),
             "mesh": {"curliness": float(s.curliness), "bark": s.bark, "seed": int(s.twigs.seed)},
             "limbs": sk.kind,                                    # traced from the video, or grown
+            **({"photo": {"species": photo.species or model.name, "seconds": float(photo.seconds),
+                          "wind": float(photo.wind), "seed": int(photo.seed)}} if photo is not None else {}),
             "depth": {"source": "learned" if depth is not None else "envelope",
                       "crown_scale": round(float(lifted.envelope.depth_scale), 4)},
             "base_px": [float(base[0]), float(base[1])],          # trunk base in frame 1 (x, y) px
             "video_size": [int(res.outline.mask.shape[1]), int(res.outline.mask.shape[0])]}
-    tree = Tree3D(sk.parents.copy(), (mo.nodes * scale).astype(np.float32), radius, sk.level.copy(),
-                  sk.fps, name, meta, times=uneven_times(sk.times, sk.fps))
+    tree = Tree3D(sk.parents.copy(), (nodes * scale).astype(np.float32), radius, sk.level.copy(),
+                  sk.fps, name, meta, times=times)
     if fit is not None:
         meta["branch_fit"] = {"measured": fit.n_measured, "radii": radius_px is not None,
                               "trusted": int(vf.trusted.sum()),
@@ -264,7 +274,7 @@ def build_3d(res: Result, s: Settings | None = None, name: str = "Tree",
 
 
 def build_shot(results: list[Result], s: Settings | None = None, names: list[str] | None = None,
-               progress: ProgressFn | None = None) -> list[Tree3D]:
+               progress: ProgressFn | None = None, photo: PhotoMotion | None = None) -> list[Tree3D]:
     """The trees of one shot (:func:`run_all`) at one scale and where they stand: the tallest in
     frame 1 is ``height_m`` tall and the others in proportion (each alone would be ``height_m``),
     and each tree's ``meta["shot_offset_m"]`` is its trunk base's place (x right, y depth 0, z up,
@@ -272,11 +282,11 @@ def build_shot(results: list[Result], s: Settings | None = None, names: list[str
     s = s or Settings()
     names = names or [f"Tree {k + 1}" for k in range(len(results))]
     if len(results) == 1:
-        return [build_3d(results[0], s, names[0], progress)]
+        return [build_3d(results[0], s, names[0], progress, photo=photo)]
     tallest = max(float(np.ptp(r.skeleton.nodes2d[0, :, 1])) for r in results)
     scale = s.height_m / max(tallest, 1.0)
     n = len(results)
-    trees = [build_3d(r, s, nm, sub_progress(progress, k / n, (k + 1) / n), metres_per_px=scale)
+    trees = [build_3d(r, s, nm, sub_progress(progress, k / n, (k + 1) / n), metres_per_px=scale, photo=photo)
              for k, (r, nm) in enumerate(zip(results, names))]
     b0 = np.asarray(trees[0].meta["base_px"], float)
     for tree in trees:
