@@ -14,6 +14,7 @@ import numpy as np
 
 from ..core import pipeline
 from ..core.errors import InputError
+from ..core.generate.photo import PhotoMotion, check_photo, is_photo
 from ..core.job import Job
 from ..core.loop import maybe_loop
 from ..core.reconstruct.node_motion import confidence_summary, low_share
@@ -89,6 +90,8 @@ def inputs_from(props):
     video = bpy.path.abspath(props.video_path)
     if not props.video_path:
         raise InputError("no video chosen; pick the video file in the Source panel")
+    if is_photo(video):
+        check_photo(video)                 # a photo: one clear line for a tiny, flat or unreadable one
     info = open_video(video)               # raises a clear InputError for missing/unreadable files
     if props.outline_source == "AUTO":
         return video, "auto"
@@ -143,8 +146,9 @@ def make_work(video, outline, settings: pipeline.Settings, name: str):
         # moves evenly
         split = pipeline.share_2d(pipeline.clip_frames(video, settings))
         results = pipeline.run_all(video, outline, settings, sub_progress(progress, 0.0, split))
+        photo = PhotoMotion() if is_photo(video) else None      # a photo sways as its form's species
         trees = pipeline.build_shot(results, settings, tree_names(name, len(results)),
-                                    sub_progress(progress, split, 1.0))     # one scale, each where it stands
+                                    sub_progress(progress, split, 1.0), photo=photo)   # one scale, each where it stands
         return list(zip(results, trees))
     return work
 

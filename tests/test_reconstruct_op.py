@@ -237,3 +237,30 @@ def test_an_overlay_kept_in_the_dense_format_of_older_files_still_draws():
     assert len(clip_overlay.frame_geometry(old, 1)[0]) == 0
     del bpy.context.scene[clip_overlay.KEY]
     clip_overlay.clear()
+
+
+def test_a_photo_reconstructs_a_swaying_tree(addon, tmp_path):
+    """Issue 35: a photo as the Source (frame 1 of the broad sample as a JPEG) builds a tree that
+    sways as its form's species for 8 s; a photo of one flat colour is refused with one line."""
+    import cv2
+    cap = cv2.VideoCapture(VIDEO)
+    ok, frame = cap.read()
+    cap.release()
+    photo = str(tmp_path / "oak.jpg")
+    assert ok and cv2.imwrite(photo, frame)
+    addon.video_path, addon.outline_path, addon.collection_name = photo, OUTLINE, "Photo Oak"
+    result, err = _run_op()
+    assert result == {"FINISHED"}, err
+    rig = next(o for o in bpy.data.collections["Photo Oak"].objects if o.type == "ARMATURE")
+    tip = max(rig.pose.bones, key=lambda b: (rig.matrix_world @ b.tail).z)
+    tails = []
+    for f in (1, 40, 80, 120):
+        bpy.context.scene.frame_set(f)
+        tails.append(np.array(rig.matrix_world @ tip.tail))
+    assert bpy.context.scene.frame_end >= 8 * 24                       # 8 s of sway
+    assert np.ptp(np.array(tails), axis=0).max() > 0.01               # it moves (metres)
+    flat = str(tmp_path / "flat.png")
+    cv2.imwrite(flat, np.full((300, 400, 3), 90, np.uint8))
+    addon.video_path, addon.collection_name = flat, "Flat"
+    result, err = _run_op()
+    assert result == {"CANCELLED"} and "Flat" not in bpy.data.collections

@@ -106,7 +106,9 @@ def _holds_trees(self, coll) -> bool:
 class TreeVideoSettings(bpy.types.PropertyGroup):
     # Source
     video_path: bpy.props.StringProperty(name="Video", subtype="FILE_PATH",
-                                         description="Video of the tree moving in wind (mp4, mov, avi)")
+                                         description="Video of the tree moving in wind (mp4, mov, avi), or a "
+                                                     "photo of it (jpg, png, tif, webp: the tree then sways as "
+                                                     "its form's species, 8 s)")
     use_frame_range: bpy.props.BoolProperty(name="Frame Range", default=False,
                                             description="Use only part of the video")
     frame_start: bpy.props.IntProperty(name="Start", default=1, min=1,
