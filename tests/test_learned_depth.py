@@ -120,3 +120,27 @@ def test_crown_depth_scale_and_the_elliptic_envelope():
     assert flat.contains(p, tol=0.0).tolist() == [True, False, True]
     assert np.abs(flat.attractors(64)[:, 1]).max() <= 6.0 + 1e-9
     assert flat.depth_limit(np.array([[0.0, 0.0, 30.0]]))[0] == pytest.approx(6.0)
+
+
+def test_the_lift_follows_a_confident_predicted_distance():
+    """The prior exp(−(|y| − m_i)² / 2σ²) on a hand-made Y: a trunk and two limbs, the learned
+    depth saying every node lies 0.15 H from the trunk's plane, trusted tightly (σ small): each
+    limb's tip lands at ±0.15 H (on either side, which the other terms choose); without the prior
+    the tips land elsewhere (it is the prior that put them there)."""
+    from tree_from_video.core.outline import Outline
+    from tree_from_video.core.reconstruct.lift import LiftParams, lift
+    from tree_from_video.core.reconstruct.skeleton2d import Skeleton2D
+    H = 200
+    nodes = np.array([[150, 250], [150, 150], [110, 80], [190, 80]], np.float32)   # base, fork, two tips
+    skel = Skeleton2D(np.array([-1, 0, 1, 1], np.int32), nodes[None], np.array([0, 0, 1, 1], np.int32), 24.0)
+    mask = np.zeros((300, 300), bool)
+    mask[50:250, 60:240] = True                                           # H = 200 px tall
+    outline = Outline(np.array([[60, 50], [240, 50], [240, 250], [60, 250]], np.float32), mask)
+    S = ld.SIZE
+    dist = ld.DepthImages(np.full((S, S), 0.15), np.full((S, S), 0.4), np.full((S, S), 0.2),
+                          ld.crop_box(mask))
+    tight = lift(skel, outline, LiftParams(), depth=dist, fit=np.array([0.01, 0.05, 0.05]))
+    assert np.abs(tight.nodes[2:, 1]) == pytest.approx(0.15 * H, abs=1.0)
+    assert tight.nodes[:2, 1] == pytest.approx(0.0)                      # the trunk is never pushed
+    free = lift(skel, outline, LiftParams(depth_prior=False), depth=dist, fit=np.array([0.01, 0.05, 0.05]))
+    assert np.abs(np.abs(free.nodes[2:, 1]) - 0.15 * H).max() > 5.0, free.nodes
