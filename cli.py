@@ -36,9 +36,9 @@ from .core.fileio import atomic_savez, read_json
 from .core.formats import FORMATS
 from .core.generate import batch as gb
 from .core.generate import species
-from .core.generate.photo import PhotoMotion, check_motion, check_photo, is_photo
+from .core.generate.photo import PhotoMotion, check_photo, is_photo
 from .core.loop import LoopSettings
-from .core.params import spec
+from .core.params import check, spec
 from .core.reconstruct import node_motion, overlay, skeleton_io
 from .core.reconstruct.motion import MotionParams
 from .core.reconstruct.run import ReconstructSettings
@@ -442,9 +442,10 @@ def _reconstruct(args, gen) -> int:
     photo = None
     if is_photo(args.video):            # one frame: the tree sways as its species (core/generate/photo.py)
         check_photo(args.video)
-        photo = PhotoMotion(species=args.species or "", seconds=args.seconds or PhotoMotion().seconds,
+        photo = PhotoMotion(species=args.species or "",
+                            seconds=PhotoMotion().seconds if args.seconds is None else args.seconds,
                             wind=args.wind, seed=args.seed)
-        check_motion(photo)
+        check(photo)                                   # --seconds and --wind within PhotoMotion's ranges
         if photo.species:
             gb.load_species_spec(photo.species)        # a missing or broken species file fails now
     n_trees = pipeline.count_outlines(args.video, args.outline, settings.scale, settings.frames)

@@ -68,7 +68,8 @@ def main() -> None:
     from groundtruth import lift_scores
     from samples import generate, load_truth, plain_settings
 
-    net, fit = ld.shared_net(), ld.measured_fit()
+    net = ld.shared_net()
+    fit = net.fit
     rows = []
     for v, kind, seed, folder in _clips(args, generate, synth_tree):
         if True:

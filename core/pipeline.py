@@ -27,7 +27,7 @@ from .params import param, same_as
 from .progress import ProgressFn, expected_seconds, stage_split, sub_progress
 from .reconstruct.branch_fit import fit_to_video, measure_branches, tree_map
 from .reconstruct.foreground import foreground
-from .reconstruct.learned_depth import DEPTH_SOURCES, measured_fit, shared_net
+from .reconstruct.learned_depth import DEPTH_SOURCES, shared_net
 from .reconstruct.lift import LiftParams, lift
 from .reconstruct.motion import MotionParams, solve_motion
 from .reconstruct.run import (
@@ -218,9 +218,10 @@ def build_3d(res: Result, s: Settings | None = None, name: str = "Tree",
     lift_params = s.lift if s.lift.conifer or res.form != "conifer" else replace(s.lift, conifer=True)
     depth = fit_err = None
     if s.depth == "learned" and frame is not None:      # frame 1's depths from the network
-        depth = shared_net().predict(cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY), res.outline.mask,
-                                     sk.nodes2d[0].astype(np.float64), sk.parents)
-        fit_err = measured_fit()
+        net = shared_net()
+        depth = net.predict(cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY), res.outline.mask,
+                            sk.nodes2d[0].astype(np.float64), sk.parents)
+        fit_err = net.fit
     lifted = lift(sk, res.outline, lift_params, parts["lift"], depth=depth, fit=fit_err)
     base = sk.nodes2d[0, 0].astype(float)
     targets = image_to_plane(sk.nodes2d.astype(float), base)[..., [0, 2]]

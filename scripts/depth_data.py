@@ -92,13 +92,7 @@ def traced_like(scene: st.Scene, rng: np.random.Generator) -> tuple[np.ndarray, 
     keep = ~drop_branch[tree.node_branch]
     keep[tree.parents < 0] = True
     # a dropped node's descendants go too (they hang from it)
-    gone = ~keep
-    up = tree.parents.copy()
-    while np.any(up >= 0):
-        j = up >= 0
-        gone |= j & gone[np.maximum(up, 0)]
-        up = np.where(j, tree.parents[np.maximum(up, 0)], -1)
-    keep = ~gone
+    keep &= ld.ancestor_sums(tree.parents, ~keep) == 0
     idx = np.full(len(keep), -1)
     idx[keep] = np.arange(keep.sum())
     par = tree.parents[keep]
@@ -163,8 +157,8 @@ def magnitudes(y: np.ndarray) -> np.ndarray:
     it is a coin toss: an L1 fit of signed depths sinks to 0, measured: the crown's predicted depths
     spanned ±0.05 H where the true ones spanned ±0.4 H): the skeleton's distance from the plane
     |d| / H, the crown's reach max(|front|, |back|) / H, and the interval / H."""
-    d = 2.0 * y[:, 0] - 1.0
-    front = 2.0 * y[:, 1] - 1.0
+    d = ld.from_unit(y[:, 0])
+    front = ld.from_unit(y[:, 1])
     back = front + y[:, 2]
     out = np.stack([np.abs(d), np.maximum(np.abs(front), np.abs(back)), y[:, 2]], 1)
     return np.clip(out, 0.0, 1.0).astype(np.float32)

@@ -20,12 +20,13 @@ NODES = np.array([[0, 0], [0, 1], [1, 1], [0, 2], [1, 2], [2, 1], [0, 3], [0, 4]
 
 
 def test_branch_order_counts_the_forks_above():
-    assert ld.branch_order(PARENTS).tolist() == [0, 0, 1, 1, 2, 2, 1, 1]
+    from tree_from_video.core.topology import branching_level
+    assert branching_level(PARENTS).tolist() == [0, 0, 1, 1, 2, 2, 1, 1]
     # children listed before parents: the same count
     perm = np.array([7, 6, 5, 4, 3, 2, 1, 0])
     inv = np.argsort(perm)
     shuffled = np.where(PARENTS[perm] >= 0, inv[np.maximum(PARENTS[perm], 0)], -1)
-    assert ld.branch_order(shuffled).tolist() == ld.branch_order(PARENTS)[perm].tolist()
+    assert branching_level(shuffled).tolist() == branching_level(PARENTS)[perm].tolist()
 
 
 def test_path_length_and_depth_by_pointer_jumping():

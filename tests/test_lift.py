@@ -135,7 +135,7 @@ def learned_table(runs, lift_table):
         frame = pipeline.first_frame(res)
         depth = ld.shared_net().predict(cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY), res.outline.mask,
                                         sk.nodes2d[0].astype(np.float64), sk.parents)
-        L = lift.lift(sk, res.outline, lift.LiftParams(conifer=(v == "conifer")), depth=depth, fit=ld.measured_fit())
+        L = lift.lift(sk, res.outline, lift.LiftParams(conifer=(v == "conifer")), depth=depth, fit=ld.shared_net().fit)
         rows[v] = lift_scores(L.nodes, sk.parents, sk.nodes2d[0, 0], runs[v]["truth"])
         rows[v]["inside"] = float(L.envelope.contains(L.nodes).mean())
     lines = [f"{'variant':<9}{'envelope':>9}{'learned':>9}  (3D chamfer / the flattened truth's)"]

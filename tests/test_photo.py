@@ -108,6 +108,12 @@ def test_bad_photos_one_line_exit_2(tmp_path):
         lines = [ln for ln in err.splitlines() if ln.strip()]
         assert code == 2 and words in lines[-1] and lines[-1].startswith("error:"), err
         assert "Traceback" not in err
+    # a sway of no length, or a wind past the range
+    photo = frame_one_jpeg(committed("broad"), tmp_path / "ok.jpg")
+    for opt, value, words in (("--seconds", "0", "--seconds 0.0 out of range"), ("--wind", "20", "--wind 20.0 out of range")):
+        code, _, err = run(photo, "--outline", outline, "--out", tmp_path / f"out_{opt[2:]}", opt, value)
+        assert code == 2 and words in err.strip().splitlines()[-1], err
+        assert not (tmp_path / f"out_{opt[2:]}").exists()
     # a video is not a photo's sway: --seconds with a video is still an error
     code, _, err = run(os.path.join(committed("broad"), "video.mp4"), "--outline", outline, "--out",
                        tmp_path / "v", "--seconds", "4")

@@ -73,14 +73,6 @@ def check_photo(path: str | os.PathLike) -> np.ndarray:
     return img
 
 
-def check_motion(m: PhotoMotion) -> None:
-    """:class:`InputError` for a photo motion out of range."""
-    if not 0.0 < m.seconds <= 600.0:
-        raise InputError(f"--seconds {m.seconds:g} is out of range; give a length in (0, 600] s, e.g. 8")
-    if not 0.0 <= m.wind <= 10.0:
-        raise InputError(f"--wind {m.wind:g} is out of range; give 0 (still) to 10, 1 as in the species' clip")
-
-
 def species_for(m: PhotoMotion, form: str):
     """The species model that sways a tree of ``form``: ``m.species`` or the form's library species."""
     from .batch import load_species_spec

@@ -7,7 +7,8 @@ Encoding (:func:`encode`, ``(IN_CHANNELS, SIZE, SIZE)`` float32 in [0, 1], the s
 :func:`crop_box` around the outline): 0 the Canny edges of the grey frame, 1 the outline's mask,
 2 the skeleton's segments (the seed's user strokes, drawn by the trace), 3 each segment's branching
 order (the forks between it and the root, /4, at most 1: the seed's strokes coloured by branch),
-4 its distance along the skeleton from the root over the longest such distance.
+4 its distance along the skeleton from the root over the longest such distance (branching order as
+:func:`..topology.branching_level` counts it).
 
 Prediction (:data:`OUT_CHANNELS` images, depths over ``H`` the tree's height in the image, in
 [0, 1]): 0 the skeleton's distance from the plane through the trunk where the skeleton is drawn,
@@ -23,6 +24,8 @@ import os
 from dataclasses import dataclass
 
 import numpy as np
+
+from ..topology import branching_level
 
 #: where the lift takes the depth a single view cannot show: the outline's surface of revolution
 #: (the paper's envelope) or this network (``--depth``)
@@ -94,13 +97,6 @@ def tree_height_px(mask: np.ndarray) -> float:
     return float(rows[-1] - rows[0] + 1)
 
 
-def branch_order(parents: np.ndarray) -> np.ndarray:
-    """``(N,)`` the forks (nodes with two or more children) strictly between each node and the root."""
-    parents = np.asarray(parents, np.int64)
-    kids = np.bincount(parents[parents >= 0], minlength=len(parents))
-    return np.rint(ancestor_sums(parents, kids >= 2)).astype(np.int64)
-
-
 def path_length(nodes: np.ndarray, parents: np.ndarray) -> np.ndarray:
     """``(N,)`` distance along the skeleton from the root to each node, in the units of ``nodes (N, 2)``."""
     parents = np.asarray(parents, np.int64)
@@ -145,7 +141,7 @@ def draw_skeleton(nodes_crop: np.ndarray, parents: np.ndarray, size: int = SIZE)
     out = np.zeros((3, size, size), np.float32)
     if len(child) == 0:
         return out
-    order = np.minimum(branch_order(parents) / ORDER_SCALE, 1.0)
+    order = np.minimum(branching_level(parents) / ORDER_SCALE, 1.0)
     plen = path_length(nodes_crop, parents)
     plen = plen / max(float(plen.max()), 1e-9)
     pts, seg, t = segment_samples(nodes_crop[parents[child]], nodes_crop[child])
@@ -222,8 +218,9 @@ def shared_net(path: str = MODEL_PATH) -> "DepthNet":
 
 
 class DepthNet:
-    """The ONNX U-Net through ``cv2.dnn`` (``path``: :data:`MODEL_PATH`); :meth:`run` maps an encoded
-    input ``(IN_CHANNELS, S, S)`` to the unit output ``(OUT_CHANNELS, S, S)``."""
+    """The ONNX U-Net through ``cv2.dnn`` (``path``: :data:`MODEL_PATH`) and its measured fit
+    (``fit``, :func:`measured_fit` of the JSON beside it); :meth:`run` maps an encoded input
+    ``(IN_CHANNELS, S, S)`` to the unit output ``(OUT_CHANNELS, S, S)``."""
 
     def __init__(self, path: str = MODEL_PATH):
         import cv2
@@ -231,6 +228,7 @@ class DepthNet:
             raise FileNotFoundError(f"no depth model at {path}; run scripts/train_depth.py")
         self.net = cv2.dnn.readNetFromONNX(path)
         self.path = path
+        self.fit = measured_fit(os.path.splitext(path)[0] + ".json")    # (3,) its held-out errors
 
     def run(self, x: np.ndarray) -> np.ndarray:
         """``(OUT_CHANNELS, S, S)`` in [0, 1] (the network's tanh mapped)."""
