@@ -1,7 +1,9 @@
 """The .blend an artist gets (issue 32): a reconstructed tree of 555 frames and the default 12-tree
 forest at 180 frames, built as before (a LINEAR key per bone, channel and frame: ``every_key``) and
 as now (core/keys.py: Bezier keys where the motion needs them, baked samples where it jitters,
-the leaves' flutter one cycle). For each it prints the F-curves' keys and samples, the largest
+the leaves' flutter one cycle); the forest also with every tree its own (*Variants* 0) and with the
+panel's default variants, each built once and standing again as instances sharing its data and
+motion (operators/scene/instances.py). For each it prints the F-curves' keys and samples, the largest
 node error of the curves over every frame against the model (share of the tree height), the
 .blend's size saved as Blender saves by default (uncompressed) and with *Compress* (as the batch's
 ``--blend`` writes it), and the peak memory of a background Blender (the bpy wheel: 256 MB with an
@@ -109,7 +111,7 @@ def tree_case(path: str, every_key: bool, folder: str) -> dict:
                 curves=n, keys=k, samples=s, err=err, mb=mb, zmb=zmb, peak=peak)
 
 
-def forest_case(frames: int, every_key: bool, folder: str) -> dict:
+def forest_case(frames: int, every_key: bool, folder: str, variants: int | None = None) -> dict:
     import functools
 
     import bpy
@@ -117,7 +119,11 @@ def forest_case(frames: int, every_key: bool, folder: str) -> dict:
     from tree_from_video.operators.scene import build
     from tree_from_video.operators.scene import forest as forest_build
     bpy.ops.wm.read_factory_settings(use_empty=True)
-    bpy.context.scene.tree_video.gen_frames = frames      # the panel's other settings: its defaults
+    props = bpy.context.scene.tree_video
+    props.gen_frames = frames                             # the panel's other settings: its defaults
+    if variants is not None:
+        props.forest_variants = variants
+    variants = props.forest_variants
     original = forest_build.build_tree
     if every_key:
         forest_build.build_tree = functools.partial(build.build_tree, every_key=True)
@@ -127,8 +133,9 @@ def forest_case(frames: int, every_key: bool, folder: str) -> dict:
         forest_build.build_tree = original
     n, k, s = curves_count()
     trees = len([o for o in bpy.data.objects if o.type == "ARMATURE"])
-    mb, zmb, peak = saved(folder, "forest_every" if every_key else "forest")
-    return dict(what=f"default forest: {trees} trees x {frames} frames", curves=n, keys=k, samples=s,
+    mb, zmb, peak = saved(folder, f"forest_{'every' if every_key else 'keys'}_{variants}")
+    kind = "every tree its own" if variants == 0 else f"{variants} variants"
+    return dict(what=f"default forest: {trees} trees x {frames} frames, {kind}", curves=n, keys=k, samples=s,
                 err=float("nan"), mb=mb, zmb=zmb, peak=peak)
 
 
@@ -149,9 +156,8 @@ def main() -> None:
         for every in (True, False):
             rows.append(("before" if every else "now", tree_case(path, every, args.work), TARGET_TREE_MB))
     if "forest" in only:
-        for every in (True, False):
-            rows.append(("before" if every else "now", forest_case(args.forest_frames, every, args.work),
-                         TARGET_FOREST_MB))
+        for label, every, variants in (("before", True, 0), ("keys", False, 0), ("now", False, None)):
+            rows.append((label, forest_case(args.forest_frames, every, args.work, variants), TARGET_FOREST_MB))
     print("\n| scene | keys | F-curves | keys | samples | node error / H | .blend MB | compressed MB "
           "(target) | peak MB to open |")
     print("|---|---|---|---|---|---|---|---|---|")

@@ -254,6 +254,8 @@ class TREE_OT_generate_forest(jobs.JobOperator, bpy.types.Operator):
         params = grow_params(props, model.n_frames if model is not None else tree_src.n_frames, context.scene)
         audio = audio_path(props)
         n, spacing, seed = props.forest_count, props.forest_spacing, props.gen_seed
+        # a recorded wind's gust reaches every tree at once: trees of a variant would carry it apart
+        variants = 0 if audio else props.forest_variants
         if props.forest_ground is not None:
             tris = ground_triangles(props.forest_ground)
 
@@ -268,7 +270,7 @@ class TREE_OT_generate_forest(jobs.JobOperator, bpy.types.Operator):
                 return np.concatenate([xy + cursor[:2], np.full((len(xy), 1), cursor[2])], axis=1)
         self._name = unique_collection_name(props.forest_name.strip() or "Forest")
         return Job(_grow_work(model, tree_src, spec, params, audio,
-                              slots_fn=lambda: forest.forest_slots(positions(), seed)))
+                              slots_fn=lambda: forest.forest_slots(positions(), seed, variants=variants)))
 
     # the worker's trees are built on the main thread: all at once (execute) or a few per tick (invoke)
     def done(self, context, result):

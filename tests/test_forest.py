@@ -85,3 +85,49 @@ def test_forest_cancel():
     with pytest.raises(Cancelled):
         forest.generate_forest(model, env, slots, growth.GrowParams(n_frames=10), progress=progress)
     assert max(seen) < 0.6
+
+
+def test_variants_are_dealt_evenly_and_numbered_by_first_slot():
+    slots = forest.forest_slots(np.zeros((12, 2)), seed=5, variants=3)
+    v = np.array([s.variant for s in slots])
+    assert sorted(np.bincount(v)) == [4, 4, 4]
+    assert [int(x) for x in v[np.sort(np.unique(v, return_index=True)[1])]] == [0, 1, 2]   # first-seen order
+    for k in range(3):                              # a variant's slots carry its one seed
+        assert len({s.seed for s in slots if s.variant == k}) == 1
+    assert len({s.seed for s in slots}) == 3
+    assert len({round(s.time_offset_s, 6) for s in slots}) == 12 and len({s.rotation_z for s in slots}) == 12
+    # 0 or ≥ n variants: every slot its own tree, as before
+    own = forest.forest_slots(np.zeros((4, 2)), seed=5)
+    assert [s.variant for s in own] == [0, 1, 2, 3] and len({s.seed for s in own}) == 4
+    assert [s.variant for s in forest.forest_slots(np.zeros((4, 2)), seed=5, variants=9)] == [0, 1, 2, 3]
+    assert forest.variant_count(slots) == 3 and forest.shares_variants(slots) and not forest.shares_variants(own)
+    with pytest.raises(InputError, match="variants"):
+        forest.forest_slots(np.zeros((4, 2)), variants=-1)
+
+
+def test_instance_offsets_by_hand():
+    """Offsets are each slot's time offset minus its variant's first slot's, in frames, wrapped
+    round the period: 24 fps, period 48 frames."""
+    S = forest.TreeSlot
+    z = np.zeros(3)
+    slots = [S(z, 0.0, 1, 1.0, z, 1.0, 0), S(z, 0.0, 2, 0.5, z, 1.0, 1), S(z, 0.0, 1, 2.5, z, 1.0, 0),
+             S(z, 0.0, 1, 0.25, z, 1.0, 0), S(z, 0.0, 2, 3.0, z, 1.0, 1)]
+    got = forest.instance_offsets(slots, 24.0, 48)
+    # (2.5 − 1) · 24 = 36; (0.25 − 1) · 24 = −18 → 30; (3 − 0.5) · 24 = 60 → 12
+    assert got.tolist() == [0, 0, 36, 30, 12]
+
+
+def test_shared_variants_sway_in_a_loop_and_refuse_a_recording():
+    model = species.load_species(species.species_library()["sparse"])
+    env = envelopes.topiary("circle", 5.0)
+    slots = forest.forest_slots(forest.scatter_area(5, 30, 30, 4.0, seed=2), seed=4, variants=2)
+    trees = forest.generate_forest(model, env, slots, growth.GrowParams(n_frames=73, node_budget=80))
+    assert len(trees) == 2
+    for v, t in enumerate(trees):
+        first = next(s for s in slots if s.variant == v)
+        assert t.meta["periodic"]["frames"] == 72 and t.n_frames == 73
+        assert np.abs(t.nodes3d[-1] - t.nodes3d[0]).max() < 1e-4 * np.ptp(t.nodes3d[0][:, 2])   # a loop
+        assert np.max(t.meta["envelope"]["z"]) == pytest.approx(5.0 * first.scale, rel=0.02)
+        assert t.meta["seed"] == first.seed
+    with pytest.raises(InputError, match="Variants to 0"):
+        forest.generate_forest(model, env, slots, growth.GrowParams(n_frames=20), audio=np.ones(20))

@@ -254,6 +254,7 @@ class TREE_PT_generate(_TreePanel, bpy.types.Panel):
         col.separator()
         col.prop(props, "forest_name")
         col.prop(props, "forest_count")
+        col.prop(props, "forest_variants")
         col.prop(props, "forest_spacing")
         col.prop(props, "forest_ground")
         if props.forest_ground is None:        # one row each: side by side, the Depth label was lost

@@ -12,6 +12,7 @@ from ..core.detail.leaf_clusters import LeafParams
 from ..core.detail.twigs import TwigParams
 from ..core.formats import by_flag, interchange
 from ..core.generate.batch import GenerateRequest
+from ..core.generate.forest import ForestSettings
 from ..core.generate.growth import GrowParams
 from ..core.loop import LoopSettings
 from ..core.pipeline import Settings
@@ -45,6 +46,7 @@ CORE_FIELDS = {
     "gen_nodes": (GenerateRequest, "nodes"),
     "gen_wind": (GenerateRequest, "wind"),
     "gen_seed": (GenerateRequest, "seed"),
+    "forest_variants": (ForestSettings, "variants"),
     "curliness": (MeshParams, "curliness"),
     "bark": (MeshParams, "bark"),
     "leaf_density": (LeafParams, "density"),
@@ -318,6 +320,11 @@ class TreeVideoSettings(bpy.types.PropertyGroup):
                                           description="Collection that holds the forest's trees")
     forest_count: bpy.props.IntProperty(name="Trees", default=12, min=1, max=1000,
                                         description="Number of trees in the forest")
+    forest_variants: bpy.props.IntProperty(name="Variants", **_core("forest_variants", soft_max=50),
+                                           description="Distinct trees the forest grows; each stands several times, "
+                                                       "turned, sized and out of step, sharing its mesh and motion "
+                                                       "(a smaller .blend). 0: every tree its own. A Wind Audio "
+                                                       "forest grows every tree on its own")
     forest_spacing: bpy.props.FloatProperty(name="Spacing", default=6.0, min=0.1, max=1000.0, unit="LENGTH",
                                             description="Smallest distance between two trees (Poisson-disk)")
     forest_ground: bpy.props.PointerProperty(name="Ground", type=bpy.types.Object,

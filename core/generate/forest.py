@@ -7,9 +7,12 @@
   (triangle by area, then uniform barycentric ``(1 − √u, √u (1 − v), √u v)``), accepted in random
   order when at least ``min_dist`` from every accepted one (dart throwing on a hash grid).
 * :func:`forest_slots` — per tree a distinct seed, a rotation about z, a time offset and a tree
-  phase so neighbours do not sway in lockstep, and a small size jitter.
-* :func:`generate_forest` — the trees themselves (:func:`.growth.grow_tree`), with progress and
-  cancel like reconstruction.
+  phase so neighbours do not sway in lockstep, and a small size jitter; with ``variants`` V > 0
+  the trees are V variants, each standing several times (turned, sized and out of step), as a
+  forest of SpeedTree models is: the .blend keeps each variant's mesh and motion once.
+* :func:`generate_forest` — the trees themselves (:func:`.growth.grow_tree`), one per variant,
+  with progress and cancel like reconstruction; a shared variant sways in a loop of the forest's
+  length (:func:`instance_offsets`: each of its trees plays it from its own frame).
 
 When ``n`` trees do not fit at ``min_dist`` an :class:`InputError` names how many fit (or, with
 ``strict=False``, the points that fit are returned and a warning is issued).
@@ -23,6 +26,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..errors import InputError
+from ..params import param
 from ..progress import ProgressFn, report, sub_progress
 
 
@@ -138,9 +142,19 @@ def scatter_on_mesh(n: int, triangles: np.ndarray, min_dist: float, seed: int = 
 
 
 @dataclass
+class ForestSettings:
+    """``variants``: how many distinct trees a forest grows; its trees are these variants, each
+    standing several times, turned, sized and out of step (0: every tree its own). The panel's
+    *Variants* reads this default and range."""
+
+    variants: int = param(3, 0, 1000, what="forest variants")
+
+
+@dataclass
 class TreeSlot:
     """One forest tree: ``position (3,)`` metres, ``rotation_z`` radians, ``seed``,
-    ``time_offset_s`` (sway shifted in time), ``tree_phase (3,)`` radians, ``scale`` (size factor)."""
+    ``time_offset_s`` (sway shifted in time), ``tree_phase (3,)`` radians, ``scale`` (size factor),
+    ``variant``: which grown tree stands here (an index into :func:`generate_forest`'s list)."""
 
     position: np.ndarray
     rotation_z: float
@@ -148,46 +162,106 @@ class TreeSlot:
     time_offset_s: float
     tree_phase: np.ndarray
     scale: float
+    variant: int = 0
 
 
 def forest_slots(positions: np.ndarray, seed: int = 0, scale_jitter: float = 0.1,
-                 max_offset_s: float = 10.0) -> list[TreeSlot]:
-    """Per position ``(n, 2 or 3)`` a :class:`TreeSlot` with a distinct seed, a random rotation
-    about z, a random time offset in [0, ``max_offset_s``) and tree phase, and a size factor in
-    ``1 ± scale_jitter``. Deterministic per seed."""
+                 max_offset_s: float = 10.0, variants: int = 0) -> list[TreeSlot]:
+    """Per position ``(n, 2 or 3)`` a :class:`TreeSlot` with a random rotation about z, a random
+    time offset in [0, ``max_offset_s``) and tree phase, and a size factor in ``1 ± scale_jitter``.
+
+    ``variants`` 0 (or ≥ n): every slot its own tree (a distinct seed, ``variant = i``). Else the
+    slots are dealt among ``variants`` trees, as evenly as n allows and in random order (variant
+    ``v``'s seed on each of its slots; the variants numbered by their first slot). Deterministic
+    per seed."""
     P = np.asarray(positions, np.float64)
     if P.ndim != 2 or P.shape[1] not in (2, 3):
         raise InputError(f"tree positions have shape {P.shape}; expected (n, 2) or (n, 3)")
+    if int(variants) < 0:
+        raise InputError(f"forest variants {variants} out of range; use 0 (every tree its own) or more")
     if P.shape[1] == 2:
         P = np.concatenate([P, np.zeros((len(P), 1))], 1)
+    n = len(P)
     ss = np.random.SeedSequence([int(seed) & 0xFFFFFFFF, 0xF0E])
     rng = np.random.default_rng(ss)
-    seeds = ss.generate_state(len(P), np.uint32) if len(P) else np.zeros(0, np.uint32)
-    return [TreeSlot(P[i], float(rng.uniform(0, 2 * np.pi)), int(seeds[i]), float(rng.uniform(0, max_offset_s)),
-                     rng.uniform(0, 2 * np.pi, 3), float(1.0 + scale_jitter * rng.uniform(-1, 1)))
-            for i in range(len(P))]
+    seeds = ss.generate_state(n, np.uint32) if n else np.zeros(0, np.uint32)
+    slots = [TreeSlot(P[i], float(rng.uniform(0, 2 * np.pi)), int(seeds[i]), float(rng.uniform(0, max_offset_s)),
+                      rng.uniform(0, 2 * np.pi, 3), float(1.0 + scale_jitter * rng.uniform(-1, 1)), i)
+             for i in range(n)]
+    if 0 < int(variants) < n:
+        dealt = np.random.default_rng([int(seed) & 0xFFFFFFFF, 0x7A5]).permutation(np.arange(n) % int(variants))
+        _, first, which = np.unique(dealt, return_index=True, return_inverse=True)
+        order = np.argsort(np.argsort(first))              # variants numbered by their first slot
+        for i, s in enumerate(slots):
+            s.variant = int(order[which[i]])
+            s.seed = int(seeds[int(np.sort(first)[s.variant])])
+    return slots
+
+
+def variant_count(slots: list[TreeSlot]) -> int:
+    """How many grown trees ``slots`` stand on (their largest variant + 1; 0 without slots)."""
+    return max((s.variant for s in slots), default=-1) + 1
+
+
+def shares_variants(slots: list[TreeSlot]) -> bool:
+    """True if some variant stands in more than one slot."""
+    return variant_count(slots) < len(slots)
+
+
+def instance_offsets(slots: list[TreeSlot], fps: float, period_frames: int) -> np.ndarray:
+    """``(n,)`` whole frames in [0, ``period_frames``): how far into its variant's loop each slot
+    plays at the first frame — its time offset minus the one its variant was grown with (the
+    variant's first slot, 0 there), rounded to frames and wrapped round the period."""
+    if period_frames < 1:
+        raise ValueError(f"period_frames {period_frames} must be ≥ 1")
+    grown: dict[int, float] = {}
+    for s in slots:
+        grown.setdefault(s.variant, s.time_offset_s)
+    rel = np.array([s.time_offset_s - grown[s.variant] for s in slots], np.float64)
+    return np.mod(np.rint(rel * float(fps)).astype(np.int64), int(period_frames))
 
 
 def generate_forest(model, envelope, slots: list[TreeSlot], params=None, audio=None,
                     progress: ProgressFn | None = None) -> list:
-    """A distinct :class:`~.tree3d.Tree3D` per slot (its seed, phase, offset and size), in the
-    tree's own frame (place it at ``slot.position`` rotated by ``slot.rotation_z``).
+    """One :class:`~.tree3d.Tree3D` per variant (``slots[i].variant`` indexes the list), grown with
+    its first slot's seed, phase, offset and size, in the tree's own frame (place it at
+    ``slot.position`` rotated by ``slot.rotation_z``; a later slot of the variant scaled by
+    ``slot.scale / first.scale`` and played from :func:`instance_offsets`). Without shared
+    variants that is a distinct tree per slot, as before.
+
+    A shared variant sways in a loop (``meta["periodic"]``): ``params.loop_s`` if set, else the
+    forest's length (``n_frames − 1`` frames, the last frame the first), so any of its slots can
+    start anywhere in it.
 
     ``params`` a :class:`.growth.GrowParams` template; ``audio`` a WAV path or an envelope —
-    read once and shared, so a gust reaches every tree at the same time. Cancellable."""
+    read once and shared, so a gust reaches every tree at the same time (then every slot needs its
+    own tree: shared variants would carry the gust at different times). Cancellable."""
     from .growth import GrowParams, grow_tree
     from .wind import audio_envelope
     base = params or GrowParams()
     fps = float(base.fps or model.fps)
+    shared = shares_variants(slots)
+    if shared and audio is not None:
+        raise InputError("a recorded wind reaches every tree at the same time, so trees cannot share a "
+                         "variant; set the forest's Variants to 0")
+    if shared and not base.loop_s > 0:
+        base = replace(base, loop_s=max(int(base.n_frames) - 1, 2) / fps)
     if audio is not None and not isinstance(audio, np.ndarray):
         audio = audio_envelope(audio, fps, int(base.n_frames))
     env_h = float(np.max(envelope.z))
-    out = []
+    first: dict[int, tuple[int, TreeSlot]] = {}
     for k, s in enumerate(slots):
-        report(progress, "forest", k / max(len(slots), 1))
+        first.setdefault(s.variant, (k, s))
+    if sorted(first) != list(range(len(first))):
+        raise ValueError(f"slot variants {sorted(first)} are not 0..{len(first) - 1}")
+    out = []
+    V = len(first)
+    for v in range(V):
+        k, s = first[v]
+        report(progress, "forest", v / max(V, 1))
         height = (base.height_m or env_h) * s.scale
         p = replace(base, seed=s.seed, time_offset_s=s.time_offset_s, tree_phase=tuple(s.tree_phase),
                     height_m=height, name=f"{base.name or model.name}_{k:03d}")
-        out.append(grow_tree(model, envelope, p, audio, sub_progress(progress, k / len(slots), (k + 1) / len(slots))))
+        out.append(grow_tree(model, envelope, p, audio, sub_progress(progress, v / V, (v + 1) / V)))
     report(progress, "forest", 1.0)
     return out

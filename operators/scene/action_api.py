@@ -56,6 +56,21 @@ def action_fcurves(action: bpy.types.Action) -> Iterator[bpy.types.FCurve]:
         yield from action.fcurves
 
 
+def rig_action(rig):
+    """The action ``rig`` plays: its active action, else its first NLA strip's (an instance);
+    None for an unanimated rig."""
+    ad = getattr(rig, "animation_data", None)
+    if ad is None:
+        return None
+    if ad.action is not None:
+        return ad.action
+    for track in ad.nla_tracks:
+        for strip in track.strips:
+            if strip.action is not None:
+                return strip.action
+    return None
+
+
 _ENUMS: dict = {}
 
 

@@ -20,7 +20,8 @@ import bpy
 import numpy as np
 
 from ...core.errors import InputError
-from .action_api import action_fcurves
+from .action_api import action_fcurves, rig_action
+from .instances import played_as_action
 from .timing import set_frame_range
 
 
@@ -193,7 +194,8 @@ def _export(fmt: str, module, op_name: str, path, exts: tuple, objects, options:
     ext = os.path.splitext(path)[1]
     tmp = os.path.join(folder, f".{os.path.basename(path)}.{uuid.uuid4().hex[:8]}.tmp{ext}")
     try:
-        with _own_scene(context, objects) as ctx, _keys_from_zero(objects, keys_from_zero), \
+        with played_as_action(objects), _own_scene(context, objects) as ctx, \
+                _keys_from_zero(objects, keys_from_zero), \
                 _frame_range(ctx.scene, objects), _baked_bark(objects), _all_rendered(objects), \
                 _alpha_clipped(objects, alpha_clip):
             result = _run_operator(module, op_name, filepath=tmp, check_existing=False,
@@ -224,9 +226,9 @@ def animation_name(objects) -> str | None:
     """The name every export gives the tree's animation: its rig's action (``"<tree> Sway"``, or
     ``"<tree>_loop"`` for a loop, which Godot plays looped); None without an animated rig."""
     for ob in objects:
-        ad = getattr(ob, "animation_data", None) if ob is not None and ob.type == "ARMATURE" else None
-        if ad is not None and ad.action is not None:
-            return ad.action.name
+        action = rig_action(ob) if ob is not None and ob.type == "ARMATURE" else None
+        if action is not None:
+            return action.name
     return None
 
 

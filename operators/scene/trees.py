@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import bpy
 
+from .action_api import rig_action
+
 #: custom property on a tree's collection (set by build_tree; the leading underscore keeps it out
 #: of the Custom Properties panel)
 TREE_KEY = "_tree_from_video_built"
@@ -93,10 +95,10 @@ def tree_size(coll) -> int:
     for ob in coll.all_objects:
         if ob.type != "ARMATURE":
             continue
-        ad = ob.animation_data
+        action = rig_action(ob)
         frames = 1
-        if ad is not None and ad.action is not None:
-            start, end = ad.action.frame_range
+        if action is not None:
+            start, end = action.frame_range
             frames = max(int(round(end - start)) + 1, 1)
         size += len(ob.data.bones) * frames
     return max(size, 1)
