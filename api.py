@@ -7,6 +7,8 @@
     print(tree.meta["metres_per_px"], tree.meta["base_px"], tree.meta["video_size"])
     trees = api.generate("broad", 3, envelope="heart", seed=7)          # new trees of a species
     game = api.loop(tree, 8.0)                                          # a seamless 8 s loop
+    job = api.job(video="oak.mp4", outline="oak.json", out="oak", gltf=True, bones=64)   # a batch job
+    report = api.run_job(job)                  # run as batch.py runs it: oak/report.json, the files
     # inside Blender (bpy):
     built = api.build_tree(bpy.context, tree, "Oak")                    # armature, branches, leaves
     api.export(built, "//oak.glb")                                      # format from the extension
@@ -20,10 +22,12 @@ from the camera, z up), ``radius (N,)`` metres, ``fps``, ``leaves`` and ``meta``
 from __future__ import annotations
 
 import dataclasses
+import io
 import os
+import sys
 from typing import Any
 
-from .core import formats, pipeline
+from .core import formats, jobs, pipeline
 from .core.errors import Cancelled, InputError
 from .core.progress import ProgressFn
 from .core.reconstruct.run import Result
@@ -31,8 +35,8 @@ from .core.tree3d import Tree3D
 from .core.tree3d import load_tree as _load_tree
 from .core.tree3d import save_tree as _save_tree
 
-__all__ = ["Cancelled", "InputError", "Result", "Tree3D", "build_3d", "build_tree", "export", "generate",
-           "load_tree", "reconstruct", "save_tree", "settings", "species_library"]
+__all__ = ["Cancelled", "InputError", "Result", "Tree3D", "build_3d", "build_tree", "export", "generate", "job",
+           "load_tree", "reconstruct", "run_job", "save_tree", "settings", "species_library"]
 
 #: Keywords of :func:`settings` beyond the fields of :class:`pipeline.Settings` (levels, skeleton,
 #: frames, scale, height_m, curliness, bark, fit_branches, cache_dir, ...).
@@ -112,6 +116,55 @@ def generate(species: str | os.PathLike = "broad", n: int = 1, envelope: str | N
         trees.append(grow_tree(model, env, p, progress=sub_progress(progress, i / n, (i + 1) / n)))
     report(progress, "generating", 1.0)
     return trees
+
+
+def job(**options: Any) -> jobs.Job:
+    """The batch job the options describe, by the batch options' names (``video``, ``outline``,
+    ``out``, ``levels``, ``gltf``, ``bones``, ``generate``, ``species``…; :data:`core.jobs.OPTIONS`):
+    a :class:`~.core.jobs.ReconstructJob`, ``PhotoJob``, ``GenerateJob`` or ``ExportJob``, typed and
+    checked as the command line's (:func:`core.jobs.from_flat`). ``jobs.to_flat(job)`` gives the
+    options back, as a job file (``batch.py --job FILE``) or a farm's list holds them."""
+    return jobs.from_flat(options, "api.job()")
+
+
+def run_job(job: "jobs.Job | dict", force: bool = False, quiet: bool = True) -> dict:
+    """Run ``job`` (a :func:`job`, or its options) as ``batch.py`` runs it, in this process: its
+    folder gets the files, ``report.json`` and ``job.log``; a done job (its report ``ok``, the same
+    settings and input) is skipped unless ``force``. Returns the report (status ``ok``, ``error``
+    or ``cancelled``; a skipped job's is the one it left); bad input raises :class:`InputError` with
+    the report's one line. The Blender outputs need bpy (this Blender, or the bpy wheel)."""
+    from . import cli
+    from .core.farm.report import read_report
+    flat = jobs.check_types(job, "api.run_job()") if isinstance(job, dict) else jobs.to_flat(job)
+    if not flat.get("out"):
+        raise InputError("the job has no out folder; give out=FOLDER")
+    jobs.from_flat(flat, "api.run_job()")            # its options' errors raised here, before any folder
+    said = io.StringIO()
+    stderr = sys.stderr
+    sys.stderr = _Both(stderr, said)                # the runner's one line, should it refuse the job
+    try:
+        code = cli.main(jobs.to_argv(flat) + (["--force"] if force else []) + (["--quiet"] if quiet else []))
+    finally:
+        sys.stderr = stderr
+    report = read_report(flat["out"]) or {}
+    if code == 2:
+        errors = [ln[len("error: "):] for ln in said.getvalue().splitlines() if ln.startswith("error: ")]
+        raise InputError(report.get("message") or (errors[-1] if errors else f"the job in {flat['out']} was refused"))
+    return report
+
+
+class _Both:
+    """A stream that writes to two."""
+
+    def __init__(self, a, b):
+        self._a, self._b = a, b
+
+    def write(self, text: str) -> int:
+        self._b.write(text)
+        return self._a.write(text)
+
+    def __getattr__(self, name):
+        return getattr(self._a, name)
 
 
 def loop(tree: Tree3D, seconds: float) -> Tree3D:

@@ -20,11 +20,12 @@ import sys
 import tempfile
 import time
 import traceback
+from dataclasses import dataclass
 from types import SimpleNamespace
 
 from . import __version__, api
-from .core import pipeline
-from .core.asset.game import ENGINES, GameSettings, preset
+from .core import jobs, pipeline
+from .core.asset.game import ENGINES, GameSettings
 from .core.detail.branch_mesh import MeshParams
 from .core.detail.leaf_clusters import LeafParams
 from .core.detail.twigs import TwigParams
@@ -36,9 +37,8 @@ from .core.fileio import atomic_savez, read_json
 from .core.formats import FORMATS
 from .core.generate import batch as gb
 from .core.generate import species
-from .core.generate.photo import PhotoMotion, check_photo, is_photo
-from .core.loop import LoopSettings
-from .core.params import check, spec
+from .core.generate.photo import check_photo
+from .core.params import spec
 from .core.reconstruct import node_motion, overlay, skeleton_io
 from .core.reconstruct.motion import MotionParams
 from .core.reconstruct.run import ReconstructSettings
@@ -268,66 +268,11 @@ def _blender_outputs():
     return outputs
 
 
-def _wanted(args) -> tuple[dict, list[str]]:
-    """({format: bool}, file names) of the Blender exports asked for."""
-    wanted = {f.flag: bool(getattr(args, f.flag)) for f in FORMATS}
-    return wanted, [f.file for f in FORMATS if wanted[f.flag]]
-
-
 def _describe_engine(engine: str) -> str:
     e = ENGINES[engine]
     files = [n for n in ("pivot_painter", "bone_texture", "collision", "impostor", "viewer") if e.get(n)]
     return (f"{'/'.join(e['formats'])}, {e['bones']} bones, {e['lods']} LOD(s), {e['loop_s']:g} s loop"
             + (f", {', '.join(files).replace('_', ' ')}" if files else ""))
-
-
-def _apply_engine(args) -> None:
-    """Fill the game options the line left out from the ``--engine`` preset (or the defaults), and
-    the preset's export formats when no format flag is given."""
-    if args.bones is not None and args.bones < 1:
-        raise InputError(f"--bones {args.bones}: give at least 1 (e.g. 64), or drop it for every bone")
-    game = preset(args.engine or "", bones=args.bones, lods=args.lods, loop_s=args.loop,
-                  pivot_painter=args.pivot_painter, bone_texture=args.bone_texture, collision=args.collision,
-                  viewer=args.viewer, impostor=args.impostor)
-    args.bones = game.bones or None
-    args.lods, args.loop = game.lods, game.loop_s
-    args.pivot_painter, args.bone_texture = game.pivot_painter, game.bone_texture
-    args.collision, args.viewer, args.impostor = game.collision, game.viewer, game.impostor
-    if args.engine and not any(_wanted(args)[0].values()):
-        for flag in game.formats:
-            setattr(args, flag, True)
-
-
-def _game(args) -> GameSettings:
-    """The game export's settings of the command line (after :func:`_apply_engine`)."""
-    return GameSettings(bones=args.bones or 0, lods=args.lods, pivot_painter=args.pivot_painter,
-                        bone_texture=args.bone_texture, collision=args.collision, viewer=args.viewer,
-                        impostor=args.impostor,
-                        engine=args.engine or "", loop_s=args.loop)
-
-
-def _check_loop(args) -> None:
-    """--loop: a positive number of seconds, and --bones: at least 1; both for the Blender outputs."""
-    if args.bones is not None and args.bones < 1:
-        raise InputError(f"--bones {args.bones}: give at least 1 (e.g. 64), or drop it for every bone")
-    if args.bones is not None and not any(_wanted(args)[0].values()):
-        raise InputError("--bones cuts the rig of the Blender outputs; add one of "
-                         f"{', '.join('--' + f.flag for f in FORMATS)}")
-    if not spec(GameSettings, "lods").ok(args.lods):
-        raise InputError(f"--lods {args.lods}: give a number of levels, {spec(GameSettings, 'lods').describe()}, e.g. 3")
-    if args.viewer and not args.gltf:
-        raise InputError("--viewer plays tree.glb; add --gltf (or use --engine web)")
-    for on, flag in ((args.lods > 1, "--lods"), (args.pivot_painter, "--pivot-painter"),
-                     (args.bone_texture, "--bone-texture"), (args.collision, "--collision"), (args.impostor, "--impostor"),
-                     (args.viewer, "--viewer")):
-        if on and not any(_wanted(args)[0].values()):
-            raise InputError(f"{flag} comes with the Blender outputs; add one of "
-                             f"{', '.join('--' + f.flag for f in FORMATS)}")
-    if not spec(LoopSettings, "seconds").ok(args.loop):
-        raise InputError(f"--loop {args.loop}: give a number of seconds, {spec(LoopSettings, 'seconds').describe()}, e.g. 10")
-    if args.loop > 0 and not any(_wanted(args)[0].values()):
-        raise InputError("--loop cuts the animation of the Blender outputs; add one of "
-                         f"{', '.join('--' + f.flag for f in FORMATS)}")
 
 
 def _check_leaf_image(path: str | None) -> None:
@@ -336,24 +281,29 @@ def _check_leaf_image(path: str | None) -> None:
                          "--leaf-image for the procedural leaf")
 
 
-def _plan_generation(args):
-    """Check every --generate input before any work (:mod:`.core.generate.batch`): the request, the
-    species (mode without a video), the envelope, the audio. None without --generate."""
-    if args.generate is None:
-        if args.video is None:
-            raise InputError("no VIDEO given: give VIDEO --outline OUTLINE.json, or --generate N --species NAME "
-                             "to grow new trees")
-        photo_opts = ("species", "seconds") if is_photo(args.video) else ()     # a photo's sway
-        for opt in ("species", "envelope", "audio", "frames_out", "seconds"):
-            if getattr(args, opt) is not None and opt not in photo_opts:
-                raise InputError(f"--{opt.replace('_', '-')} only applies with --generate N; add it or drop the option")
-        return None
-    req = gb.GenerateRequest(count=args.generate, species=args.species, envelope=args.envelope, wind=args.wind,
-                             audio=args.audio, seed=args.seed, nodes=args.nodes, frames_out=args.frames_out,
-                             seconds=args.seconds, height_m=args.height,
-                             leaf_density=0.0 if args.no_leaves else args.leaf_density, twig_depth=args.twigs,
-                             loop_s=args.loop)
-    gb.check_request(req, has_video=args.video is not None)
+@dataclass
+class Run:
+    """How one job runs, beside what it is: overwrite (``force``), ``quiet``, its ``record`` (the
+    report it leaves) and whether its folder has been ``begun``."""
+
+    job: jobs.Job
+    record: JobRecord
+    force: bool = False
+    quiet: bool = False
+    begun: bool = False
+
+    @property
+    def out(self) -> str:
+        return self.job.out
+
+    def log(self, message: str) -> None:
+        if not self.quiet:
+            sys.stderr.write(message + "\n")
+
+
+def _plan_generation(run: Run, req: gb.GenerateRequest):
+    """Read what a generation needs before any work (:mod:`.core.generate.batch`): the species (mode
+    without a video), the envelope, the audio, the leaf image."""
     plan = SimpleNamespace(req=req, model=None, species_label=None, envelope=None, envelope_label=None)
     if req.species is not None:
         plan.model, plan.species_label = gb.load_species_spec(req.species)
@@ -362,152 +312,163 @@ def _plan_generation(args):
         plan.envelope, plan.envelope_label = gb.make_envelope(spec_, req.height_m)
     if req.audio is not None:
         gb.check_audio(req.audio)
-    _check_leaf_image(args.leaf_image)
+    _check_leaf_image(run.job.outputs.leaf_image)
     return plan
 
 
-def _run_generation(args, plan, outputs, wanted) -> int:
-    """Grow and write the trees of ``plan`` (its model and envelope set) into ``args.out``."""
-    log = (lambda m: None) if args.quiet else (lambda m: sys.stderr.write(m + "\n"))
+def _run_generation(run: Run, plan, outputs, look: tuple[float, str]) -> int:
+    """Grow and write the trees of ``plan`` (its model and envelope set) into the job's folder, each
+    tree's branch mesh with ``look`` (curliness, bark)."""
     write = None
     if outputs is not None:
         def write(tree, folder):
-            tree.meta["mesh"] = {"curliness": float(args.curliness), "bark": args.bark,     # the branch mesh's look
+            tree.meta["mesh"] = {"curliness": float(look[0]), "bark": look[1],     # the branch mesh's look
                                  "seed": int(tree.meta.get("seed", 0))}
-            return _write_blender(args, outputs, tree, folder, wanted, log)
+            return _write_blender(run, outputs, tree, folder, run.log)
     t0 = time.monotonic()
     entries = gb.generate_trees(plan.model, plan.species_label, plan.envelope, plan.envelope_label, plan.req,
-                                args.out, write, args.record.timed(_progress_printer(args.quiet)), log)
+                                run.out, write, run.record.timed(_progress_printer(run.quiet)), run.log)
     bones = [e["bones"] for e in entries]
-    args.record.add(trees=len(entries), leaf_clusters=sum(e["leaf_clusters"] for e in entries))
-    if "bones" not in args.record.counts:                  # the Blender outputs count the rig they built
-        args.record.add(bones=sum(bones))
+    run.record.add(trees=len(entries), leaf_clusters=sum(e["leaf_clusters"] for e in entries))
+    if "bones" not in run.record.counts:                  # the Blender outputs count the rig they built
+        run.record.add(bones=sum(bones))
     sys.stderr.write(f"done: {len(entries)} tree(s) of {plan.species_label} in {plan.envelope_label}, "
                      f"{min(bones)}-{max(bones)} bones, {entries[0]['frames']} frames, "
-                     f"{time.monotonic() - t0:.1f} s -> {os.path.join(args.out, gb.INDEX)}\n")
+                     f"{time.monotonic() - t0:.1f} s -> {os.path.join(run.out, gb.INDEX)}\n")
     return 0
 
 
-def _generate_only(args, plan) -> int:
-    """``--generate N --species S`` without a video."""
-    wanted, files = _wanted(args)
-    _check_out(args.out, gb.planned_files(plan.req, files), args.force)
-    outputs = _blender_outputs() if files else None
-    if outputs is not None:
-        outputs.check_wanted(wanted)
-    _begin(args)
-    return _run_generation(args, plan, outputs, wanted)
+def _blender_step(job) -> object | None:
+    """The Blender writers when the job asks for Blender outputs (checked against this Blender), else None."""
+    if not job.outputs.formats:
+        return None
+    outputs = _blender_outputs()
+    outputs.check_wanted(job.outputs.wanted)
+    return outputs
 
 
-def _generate_from_tree(args, plan, tree, name, outputs, wanted) -> int:
+def _generate_only(run: Run) -> int:
+    """A :class:`~.core.jobs.GenerateJob`: ``--generate N --species S`` without a video."""
+    job = run.job
+    assert isinstance(job, jobs.GenerateJob)
+    plan = _plan_generation(run, job.request)
+    _check_out(job.out, gb.planned_files(job.request, job.outputs.files), run.force)
+    outputs = _blender_step(job)
+    _begin(run)
+    return _run_generation(run, plan, outputs, (job.curliness, job.bark))
+
+
+def _generate_from_tree(run: Run, plan, tree, name, outputs) -> int:
     """``VIDEO --generate N``: fit the species of the reconstructed ``tree``, save DIR/species.json,
     grow the trees (default envelope: the reconstruction's)."""
     plan.model = species.fit_species(tree, name)              # its branches: the twigs left out
-    plan.species_label = os.path.join(args.out, gb.SPECIES_FILE)
+    plan.species_label = os.path.join(run.out, gb.SPECIES_FILE)
     species.save_species(plan.species_label, plan.model)
-    if not args.quiet:
-        sys.stderr.write(f"[species] {plan.species_label}\n")
+    run.log(f"[species] {plan.species_label}")
     if plan.envelope is None:
         plan.envelope, plan.envelope_label = envelope_from_meta(tree.meta), "reconstruction"
-    return _run_generation(args, plan, outputs, wanted)
+    s = run.job.settings
+    return _run_generation(run, plan, outputs, (s.curliness, s.bark))
+
+
+def options(args) -> dict:
+    """The batch options of a parsed command line by name (:data:`.core.jobs.OPTIONS`), None where
+    the line left them out: what :func:`.core.jobs.from_flat` reads."""
+    return {k: getattr(args, k) for k in jobs.OPTIONS}
 
 
 def settings_from_args(args) -> pipeline.Settings:
     """The :class:`~.core.pipeline.Settings` of a reconstruction asked for by ``args``, checked
-    (:func:`.api.settings`: the same keywords a script passes)."""
-    return api.settings(levels=args.levels, skeleton=args.skeleton, frames=args.frames, scale=args.scale,
-                        height_m=args.height, form="conifer" if args.conifer else args.form, solver=args.solver, twigs=args.twigs,
-                        fit_branches=not args.no_branch_fit, curliness=args.curliness, bark=args.bark,
-                        leaves=not args.no_leaves, leaf_density=args.leaf_density, leaf_cards=args.leaf_cards,
-                        flutter_hz=args.flutter_hz, leaf_colour=args.leaf_colour, limbs=args.limbs, depth=args.depth,
-                        limb_species=args.limb_species)
+    (the job's, :func:`.core.jobs.settings_of`)."""
+    return jobs.settings_of(jobs.check_types(options(args)))
 
 
 #: the folder of tree k (1-based) when the outline holds several trees
 TREE_FOLDER = "tree_{k}"
 
 
-def _reconstruct(args, gen) -> int:
-    """``VIDEO --outline ... --out DIR``: the reconstruction, its files and (with --generate) the trees.
-    An outline of several trees (a .json of several polygons, a mask of several components) gives
-    one folder ``DIR/tree_<k>/`` per tree, from one decode and one tracking pass."""
-    if not args.outline:
-        raise InputError("give the tree's outline in frame 1 with --outline OUTLINE.json|MASK.png|auto")
-    wanted, blender_files = _wanted(args)
-    names = ["skeleton.npz", "tree3d.npz", "overlay.png"] + ([] if args.no_video else ["overlay.mp4"]) \
-        + (["result.npz"] if args.npz else []) \
-        + (blender_files if gen is None else gb.planned_files(gen.req, blender_files, with_species=True))
-    _check_leaf_image(args.leaf_image)
-    settings = settings_from_args(args)
+def _reconstruct(run: Run) -> int:
+    """A :class:`~.core.jobs.ReconstructJob` or :class:`~.core.jobs.PhotoJob`: the reconstruction,
+    its files and (with ``generate``) the trees. An outline of several trees (a .json of several
+    polygons, a mask of several components) gives one folder ``DIR/tree_<k>/`` per tree, from one
+    decode and one tracking pass."""
+    job = run.job
+    assert isinstance(job, jobs.ReconstructJob)
+    plan = _plan_generation(run, job.generate) if job.generate is not None else None
+    files = job.outputs.files
+    names = ["skeleton.npz", "tree3d.npz", "overlay.png"] + (["overlay.mp4"] if job.outputs.overlay_video else []) \
+        + (["result.npz"] if job.outputs.npz else []) \
+        + (files if plan is None else gb.planned_files(plan.req, files, with_species=True))
+    _check_leaf_image(job.outputs.leaf_image)
+    settings = job.settings
     photo = None
-    if is_photo(args.video):            # one frame: the tree sways as its species (core/generate/photo.py)
-        check_photo(args.video)
-        photo = PhotoMotion(species=args.species or "",
-                            seconds=PhotoMotion().seconds if args.seconds is None else args.seconds,
-                            wind=args.wind, seed=args.seed)
-        check(photo)                                   # --seconds and --wind within PhotoMotion's ranges
+    if isinstance(job, jobs.PhotoJob):  # one frame: the tree sways as its species (core/generate/photo.py)
+        check_photo(job.video)
+        photo = job.motion
         if photo.species:
             gb.load_species_spec(photo.species)        # a missing or broken species file fails now
-    n_trees = pipeline.count_outlines(args.video, args.outline, settings.scale, settings.frames)
-    if n_trees > 1 and gen is not None:
+    n_trees = pipeline.count_outlines(job.video, job.outline, settings.scale, settings.frames)
+    if n_trees > 1 and plan is not None:
         raise InputError(f"--generate grows trees of one reconstructed tree, and the outline holds {n_trees}; "
                          "give one outline")
-    folders = [args.out] if n_trees == 1 else [os.path.join(args.out, TREE_FOLDER.format(k=k + 1))
-                                               for k in range(n_trees)]
+    folders = [job.out] if n_trees == 1 else [os.path.join(job.out, TREE_FOLDER.format(k=k + 1))
+                                              for k in range(n_trees)]
     for folder in folders:
-        _check_out(folder, names, args.force)
-    outputs = _blender_outputs() if blender_files else None
-    if outputs is not None:
-        outputs.check_wanted(wanted)
-    _begin(args)
-    cb = args.record.timed(_progress_printer(args.quiet))
-    results = pipeline.run_all(args.video, args.outline, settings, cb)
+        _check_out(folder, names, run.force)
+    outputs = _blender_step(job)
+    _begin(run)
+    cb = run.record.timed(_progress_printer(run.quiet))
+    results = pipeline.run_all(job.video, job.outline, settings, cb)
     info = results[0].info
-    args.record.video = {"width": info.width, "height": info.height, "fps": float(info.fps),
-                         "frames": [int(results[0].start), int(results[0].stop)],
-                         "time_base": "index / fps" if results[0].tracks.times is None else "frame timestamps"}
-    base = os.path.splitext(os.path.basename(args.video))[0] or "Tree"
-    names = [f"Tree {base}"] if n_trees == 1 else [f"Tree {base} {k + 1}" for k in range(n_trees)]
-    trees = pipeline.build_shot(results, settings, names, cb, photo=photo)     # one scale, each where it stands
+    run.record.video = {"width": info.width, "height": info.height, "fps": float(info.fps),
+                        "frames": [int(results[0].start), int(results[0].stop)],
+                        "time_base": "index / fps" if results[0].tracks.times is None else "frame timestamps"}
+    base = os.path.splitext(os.path.basename(job.video))[0] or "Tree"
+    tree_names = [f"Tree {base}"] if n_trees == 1 else [f"Tree {base} {k + 1}" for k in range(n_trees)]
+    trees = pipeline.build_shot(results, settings, tree_names, cb, photo=photo)     # one scale, each where it stands
     for res, tree, folder in zip(results, trees, folders):
-        _write_tree(args, res, tree, folder, outputs, wanted, gen is None, cb)
-    if gen is not None:
-        return _generate_from_tree(args, gen, trees[0], base, outputs, wanted)
+        _write_tree(run, res, tree, folder, outputs if plan is None else None, cb)
+    if plan is not None:
+        return _generate_from_tree(run, plan, trees[0], base, outputs)
     return 0
 
 
-def _write_blender(args, outputs, tree, out: str, wanted: dict, report=None) -> dict:
-    """The Blender outputs of ``tree`` in ``out`` with the line's look, loop and game options; the
+def _write_blender(run: Run, outputs, tree, out: str, report=None) -> dict:
+    """The Blender outputs of ``tree`` in ``out`` with the job's look, loop and game options; the
     built rig's counts go to the job's record (every batch path writes them through here)."""
-    return outputs.write_outputs(tree, out, wanted, overwrite=args.force, leaf_image=args.leaf_image,
-                                 report=report or (lambda m: sys.stderr.write(m + "\n")), loop_s=args.loop,
-                                 game=_game(args), stats=args.record.counts)
+    o = run.job.outputs
+    return outputs.write_outputs(tree, out, o.wanted, overwrite=run.force, leaf_image=o.leaf_image,
+                                 report=report or (lambda m: sys.stderr.write(m + "\n")), loop_s=o.game.loop_s,
+                                 game=o.game, stats=run.record.counts)
 
 
-def _write_tree(args, res, tree, out: str, outputs, wanted, exports: bool, cb) -> None:
-    """Write one reconstructed tree's files (its 2D result ``res``, its 3D ``tree``) into ``out``."""
+def _write_tree(run: Run, res, tree, out: str, outputs, cb) -> None:
+    """Write one reconstructed tree's files (its 2D result ``res``, its 3D ``tree``) into ``out``,
+    and its Blender outputs with ``outputs`` (None: none, or they are the generated trees')."""
+    job = run.job
+    assert isinstance(job, jobs.ReconstructJob)
     os.makedirs(out, exist_ok=True)
     for w in res.warnings:
         sys.stderr.write(f"warning: {w}\n")
-        args.record.warn(w)
-    args.record.add(trees=1, tracks=res.tracks.n_tracks, nodes=tree.n_nodes,
-                    leaf_clusters=tree.leaves.count if tree.leaves is not None else 0)
-    meta = {"video": os.path.abspath(args.video), "frames": [res.start, res.stop],
-            "levels": args.levels, "scale": args.scale, "version": __version__}
+        run.record.warn(w)
+    run.record.add(trees=1, tracks=res.tracks.n_tracks, nodes=tree.n_nodes,
+                   leaf_clusters=tree.leaves.count if tree.leaves is not None else 0)
+    meta = {"video": os.path.abspath(job.video), "frames": [res.start, res.stop],
+            "levels": job.settings.levels, "scale": job.settings.scale, "version": __version__}
     skeleton_io.save_skeleton(os.path.join(out, "skeleton.npz"), res.skeleton, meta)
     tree.meta.update(meta)
     save_tree(os.path.join(out, "tree3d.npz"), tree)
-    if args.npz:
+    if job.outputs.npz:
         arrays = skeleton_io.skeleton_arrays(res.skeleton, meta)
         arrays["nodes3d"] = tree.nodes3d[:, :res.skeleton.n_nodes]     # twigs are appended after
         atomic_savez(os.path.join(out, "result.npz"), **arrays)
     overlay.write_overlays(res.info, res.start, res.skeleton, res.tracks,
                            os.path.join(out, "overlay.png"),
-                           None if args.no_video else os.path.join(out, "overlay.mp4"), cb,
+                           os.path.join(out, "overlay.mp4") if job.outputs.overlay_video else None, cb,
                            res.foreground.mask if res.foreground is not None else None)
-    if outputs is not None and exports:              # with --generate the exports are per generated tree
+    if outputs is not None:
         cb("blender outputs", 0.0)
-        _write_blender(args, outputs, tree, out, wanted)
+        _write_blender(run, outputs, tree, out)
     conf = res.skeleton.confidence
     sure = "" if conf is None else f", {node_motion.confidence_summary(conf)}"
     sys.stderr.write(f"done: {res.skeleton.n_nodes} nodes, {res.tracks.n_tracks} tracks, "
@@ -516,8 +477,6 @@ def _write_tree(args, res, tree, out: str, outputs, wanted, exports: bool, cb) -
 
 #: the farm command's own options (never a job's)
 FARM_OPTIONS = ("farm", "scheduler", "workers", "job_timeout", "blender")
-#: options that are not the job's settings (where it goes, how it talks, what to do with a done one)
-NOT_SETTINGS = ("out", "video", "outline", "tree", "job", "force", "quiet", "dry_run", "record", "begun") + FARM_OPTIONS
 #: errors of the disk a job writes to: the user's to fix (exit 2), not ours
 USERS_DISK = (errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EFBIG)
 #: the options --job allows beside it on the line
@@ -527,44 +486,11 @@ BESIDE_JOB = ("job", "force", "quiet", "dry_run")
 def job_argv(doc, path: str) -> list[str]:
     """The command line of a job file's JSON object (its keys are the batch options' names, ``-`` or
     ``_``; a switch takes true/false, a number a number, the rest a string); :class:`InputError`
-    for anything else."""
-    if not isinstance(doc, dict):
-        raise InputError(f"{path} holds no JSON object; write the options as {{\"video\": ..., \"out\": ...}}")
-    actions = {a.dest: a for a in build_parser()._actions if a.dest not in ("help", "job")}
-    argv: list[str] = []
-    for key, value in doc.items():
-        dest = str(key).replace("-", "_")
-        a = actions.get(dest)
-        if a is None or dest in ("dry_run", "force", "quiet") + FARM_OPTIONS:
-            raise InputError(f"unknown key '{key}' in {path}; use the batch options' names (video, outline, out, "
-                             "gltf, bones, ...) and give --force/--dry-run/--quiet on the line")
-        flag = a.option_strings[0] if a.option_strings else None
-        switch = a.nargs == 0
-        kind = bool if switch else (a.type or str)
-        ok = (isinstance(value, bool) if kind is bool else
-              isinstance(value, int) and not isinstance(value, bool) if kind is int else
-              isinstance(value, (int, float)) and not isinstance(value, bool) if kind is float else
-              isinstance(value, str))
-        if value is None:
-            continue
-        if not ok:
-            want = {bool: "true or false", int: "a whole number", float: "a number"}.get(kind, "a string")
-            raise InputError(f"'{key}' in {path} is {json_type(value)}; give {want}")
-        if flag is None:
-            argv.insert(0, str(value))
-        elif switch:
-            argv += [flag] if value else []
-        else:
-            argv += [flag, str(value)]
-    return argv
+    for anything else (:func:`.core.jobs.to_argv`)."""
+    return jobs.to_argv(doc, path)
 
 
-def json_type(value) -> str:
-    return {bool: "true/false", int: "a number", float: "a number", str: "a string", list: "a list",
-            dict: "an object"}.get(type(value), type(value).__name__)
-
-
-def _args_from_job(args):
+def _job_file(args) -> dict:
     """The options of ``args.job`` (the line may add only --force, --dry-run, --quiet)."""
     bare = vars(build_parser().parse_args(["--job", args.job]))
     extra = [k for k, v in bare.items() if k not in BESIDE_JOB and getattr(args, k) != v]
@@ -573,19 +499,21 @@ def _args_from_job(args):
     if not os.path.isfile(args.job):
         raise InputError(f"job file '{args.job}' does not exist; give the path of a JSON job file")
     doc = read_json(args.job, f"job file '{args.job}'", "write the job as one JSON object of batch options")
-    new = build_parser().parse_args(job_argv(doc, args.job))
-    new.force, new.quiet, new.dry_run = args.force, args.quiet, args.dry_run
-    return new
+    return jobs.check_types(doc, args.job)
 
 
-def _record(args, argv: list[str]) -> JobRecord:
-    """The job's record: its settings (the resolved options; where it reads and writes excepted) and
-    input identity."""
-    settings = {k: v for k, v in sorted(vars(args).items()) if k not in NOT_SETTINGS}
-    if args.outline == "auto":
-        settings["outline"] = "auto"
+def record(job: jobs.Job | dict, argv: list[str]) -> JobRecord:
+    """The job's record: its settings (:func:`.core.jobs.settings_doc`; a job refused before it was
+    one: the options given) and input identity."""
+    if isinstance(job, dict):
+        settings = {k: v for k, v in sorted(job.items()) if k not in jobs.PLACES and v is not None}
+        video, outline = job.get("video") or job.get("tree"), job.get("outline")
+    else:
+        settings = jobs.settings_doc(job)
+        video = job.tree if isinstance(job, jobs.ExportJob) else getattr(job, "video", None)
+        outline = getattr(job, "outline", None)
     return JobRecord(list(argv), settings, identity.settings_hash(settings), __version__,
-                     input=identity.input_identity(args.video or args.tree, args.outline))
+                     input=identity.input_identity(video, outline))
 
 
 class _Tee:
@@ -602,45 +530,41 @@ class _Tee:
         return getattr(self._stream, name)
 
 
-def _exports_only(args) -> int:
-    """``--tree DIR/tree3d.npz --out DIR2 --gltf ...``: the Blender outputs of a saved tree."""
-    if args.video or args.outline or args.generate is not None:
-        raise InputError("--tree builds the outputs of a saved tree; drop the VIDEO, --outline and --generate")
-    if not os.path.isfile(args.tree):
-        raise InputError(f"tree file '{args.tree}' does not exist; give a tree3d.npz an earlier job wrote")
-    wanted, files = _wanted(args)
-    if not files:
-        raise InputError(f"--tree builds the Blender outputs; add one of {', '.join('--' + f.flag for f in FORMATS)}")
-    _check_leaf_image(args.leaf_image)
-    _check_out(args.out, files + _game(args).files(), args.force)
-    outputs = _blender_outputs()
-    outputs.check_wanted(wanted)
-    tree = api.load_tree(args.tree)
-    _begin(args)
-    args.record.add(trees=1, nodes=tree.n_nodes, leaf_clusters=tree.leaves.count if tree.leaves is not None else 0)
-    args.record.timed(None)("blender outputs", 0.0)
-    _write_blender(args, outputs, tree, args.out, wanted)
-    sys.stderr.write(f"done: the outputs of {args.tree} -> {args.out}\n")
+def _exports_only(run: Run) -> int:
+    """An :class:`~.core.jobs.ExportJob` (``--tree DIR/tree3d.npz --out DIR2 --gltf ...``): the
+    Blender outputs of a saved tree."""
+    job = run.job
+    assert isinstance(job, jobs.ExportJob)
+    if not os.path.isfile(job.tree):
+        raise InputError(f"tree file '{job.tree}' does not exist; give a tree3d.npz an earlier job wrote")
+    _check_leaf_image(job.outputs.leaf_image)
+    _check_out(job.out, job.outputs.files + job.outputs.game.files(), run.force)
+    outputs = _blender_step(job)
+    tree = api.load_tree(job.tree)
+    _begin(run)
+    run.record.add(trees=1, nodes=tree.n_nodes, leaf_clusters=tree.leaves.count if tree.leaves is not None else 0)
+    run.record.timed(None)("blender outputs", 0.0)
+    _write_blender(run, outputs, tree, job.out)
+    sys.stderr.write(f"done: the outputs of {job.tree} -> {job.out}\n")
     return 0
 
 
-def _begin(args) -> None:
+def _begin(run: Run) -> None:
     """The work starts: the folder gets a ``running`` report (a killed run leaves it saying so)."""
-    os.makedirs(args.out, exist_ok=True)
-    args.record.write(args.out)
-    args.begun = True
+    os.makedirs(run.out, exist_ok=True)
+    run.record.write(run.out)
+    run.begun = True
 
 
-def _run(args) -> int:
-    """The job of ``args`` (parsed, its engine preset applied, its record set), after the checks
-    every job takes."""
-    _check_loop(args)
-    if args.tree:
-        return _exports_only(args)
-    gen = _plan_generation(args)        # None without --generate
-    if args.video is None:
-        return _generate_only(args, gen)
-    return _reconstruct(args, gen)
+def run_job(run: Run) -> int:
+    """Run the job of ``run`` (its record set) by its kind; the one runner of the batch, a job
+    file, the farm's tasks and :func:`.api.run_job`."""
+    job = run.job
+    if isinstance(job, jobs.ExportJob):
+        return _exports_only(run)
+    if isinstance(job, jobs.GenerateJob):
+        return _generate_only(run)
+    return _reconstruct(run)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -654,32 +578,32 @@ def main(argv: list[str] | None = None) -> int:
     lines: list[str] = []
     stderr = sys.stderr
     sys.stderr = _Tee(stderr, lines)
-    args.begun, prior, status, message = False, None, "ok", None
+    run: Run | None = None
+    flat: dict = {}
+    prior, status, message = None, "ok", None
     try:
         try:
             if args.farm:
                 from . import cli_farm
-                return cli_farm.main(args, argv, SimpleNamespace(build_parser=build_parser, job_argv=job_argv,
-                                                                 _apply_engine=_apply_engine, _record=_record))
-            if args.job:
-                args = _args_from_job(args)
-                args.begun = False
-            if not args.out:
+                return cli_farm.main(args, argv, SimpleNamespace(build_parser=build_parser, options=options,
+                                                                 record=record))
+            flat = _job_file(args) if args.job else options(args)
+            if not flat.get("out"):
                 parser.error("the following arguments are required: --out")
-            _apply_engine(args)
-            args.record = _record(args, argv)
-            args.record.log = lines
-            prior = read_report(args.out) if os.path.isdir(args.out) else None
-            decision = identity.decide(prior, args.record.settings_sha256, args.record.input, args.force)
+            prior = read_report(flat["out"]) if os.path.isdir(flat["out"]) else None
+            job = jobs.from_flat(flat, args.job or "the job")
+            run = Run(job, record(job, argv), force=args.force, quiet=args.quiet)
+            run.record.log = lines
+            decision = identity.decide(prior, run.record.settings_sha256, run.record.input, args.force)
             if args.dry_run:
-                print(f"{decision.action}: {args.out}: {decision.why}")
+                print(f"{decision.action}: {job.out}: {decision.why}")
                 return 0
             if decision.action == "skip":
-                sys.stderr.write(f"skipped: {args.out}: {decision.why}\n")
+                sys.stderr.write(f"skipped: {job.out}: {decision.why}\n")
                 return 0
             if decision.action == "redo":
-                args.force = True                 # the files there are our unfinished run's
-            return _run(args)
+                run.force = True                  # the files there are our unfinished run's
+            return run_job(run)
         except InputError as exc:
             status, message = "bad_input", str(exc)
             sys.stderr.write(f"error: {exc}\n")
@@ -687,7 +611,7 @@ def main(argv: list[str] | None = None) -> int:
         except OSError as exc:
             if exc.errno not in USERS_DISK:
                 raise
-            where = exc.filename or args.out
+            where = exc.filename or flat.get("out")
             status, message = "bad_input", (f"cannot write {where} ({exc.strerror}); free space on that disk or "
                                             "choose another --out")
             sys.stderr.write(f"error: {message}\n")
@@ -703,22 +627,24 @@ def main(argv: list[str] | None = None) -> int:
             return 1
     finally:
         sys.stderr = stderr
-        _final_report(args, prior, status, message)
+        if not args.farm and not args.dry_run and flat.get("out"):
+            if run is None:                        # refused before it was a job: its options are its record
+                run = Run(jobs.ExportJob("", flat["out"], jobs.JobOutputs()), record(flat, argv))
+                run.record.log = lines
+            _final_report(run, prior, status, message)
 
 
-def _final_report(args, prior: dict | None, status: str, message: str | None) -> None:
+def _final_report(run: Run, prior: dict | None, status: str, message: str | None) -> None:
     """Write the job's report unless it never reached its folder: a failure before the work
     started reports only into an existing folder that holds no finished job's report."""
-    record = getattr(args, "record", None)
-    if record is None or getattr(args, "dry_run", False) or not args.out:
+    out = run.out
+    if not run.begun and not (os.path.isdir(out) and (prior is None or prior.get("status") != "ok")):
         return
-    if not args.begun and not (os.path.isdir(args.out) and (prior is None or prior.get("status") != "ok")):
-        return
-    if not args.begun and status == "ok":
+    if not run.begun and status == "ok":
         return                                    # skipped: the done job's report stays
     try:
-        record.finish(status, message, args.out)
-        record.write(args.out)
+        run.record.finish(status, message, out)
+        run.record.write(out)
     except OSError as exc:                         # a full disk or a read-only folder: say it, keep the code
         if status == "ok" or exc.errno not in USERS_DISK:     # a full disk was the one line already
-            sys.stderr.write(f"warning: report.json not written in {args.out} ({exc.strerror})\n")
+            sys.stderr.write(f"warning: report.json not written in {out} ({exc.strerror})\n")

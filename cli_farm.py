@@ -14,6 +14,8 @@ from types import SimpleNamespace
 from .core.errors import InputError
 from .core.farm import identity, inputs, runner
 from .core.farm.report import read_report
+from .core.jobs import from_flat
+from .core.jobs import to_argv as options_argv
 
 #: the farm's own options: not handed to its jobs
 FARM_ONLY = ("video", "outline", "tree", "out", "dry_run", "job", "quiet", "record", "begun",
@@ -58,9 +60,7 @@ def _decision(job: inputs.FarmJob, force: bool, cli: SimpleNamespace) -> identit
     if prior is None:
         return identity.Decision("run", "no report yet")
     try:
-        a = cli.build_parser().parse_args(job.argv)
-        cli._apply_engine(a)
-        rec = cli._record(a, job.argv)
+        rec = cli.record(from_flat(cli.options(cli.build_parser().parse_args(job.argv))), job.argv)
     except (InputError, SystemExit):
         return identity.Decision("run", "its options are refused: the job reports why")
     return identity.decide(prior, rec.settings_sha256, rec.input, force)
@@ -68,14 +68,14 @@ def _decision(job: inputs.FarmJob, force: bool, cli: SimpleNamespace) -> identit
 
 def main(args, argv: list[str], cli: SimpleNamespace) -> int:
     """The farm command (module docstring); ``args`` parsed by ``cli.build_parser``; ``cli`` the
-    batch's ``build_parser``, ``job_argv``, ``_apply_engine`` and ``_record`` (handed in: the batch
-    imports the farm, not the other way)."""
+    batch's ``build_parser``, ``options`` and ``record`` (handed in: the batch imports the farm, not
+    the other way)."""
     _check(args)
     options = job_options(args, cli)
     entries = inputs.read_source(args.farm)
 
     def to_argv(entry: dict) -> list[str]:
-        own = cli.job_argv(entry, args.farm)
+        own = options_argv(entry, args.farm)
         head = own[:1] if entry.get("video") is not None else []
         return head + options + own[len(head):]
 

@@ -28,7 +28,10 @@ rotations (``rotations``), the envelope Ω (``envelope``), the outline (``outlin
 formats' registry every writer and front end reads (``formats``), errors, progress
 and background jobs. ``pipeline`` strings the stages end to end: ``run`` (the 2D stages) and
 ``build_3d`` (3D lift, motion, branch widths, twigs, leaves); between them ``with_limbs`` grows
-the limbs of a crown that shows no bark.
+the limbs of a crown that shows no bark. ``jobs`` describes a whole run as a typed job
+(``ReconstructJob``, ``PhotoJob``, ``GenerateJob``, ``ExportJob``: inputs, settings, outputs asked
+for), built from the batch options by name by one ``from_flat`` that the batch, a job file, the
+farm and the API use.
 
 Imports point one way: ``reconstruct`` never imports ``detail`` or ``generate``; ``detail`` may
 use ``reconstruct``; ``generate`` may use both; ``asset`` uses ``detail`` only; the shared modules import no stage

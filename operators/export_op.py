@@ -20,7 +20,7 @@ from ..core.asset.game import fbx_options
 from ..core.errors import InputError
 from ..core.formats import by_key, interchange
 from . import jobs
-from .scene import export, export_process, game, trees
+from .scene import export, export_process, game, provenance, trees
 
 #: the last finished export (shown in the panel)
 LAST_EXPORT = export.Exported()
@@ -97,7 +97,8 @@ def plan(context, props) -> list:
         raise InputError("this Blender was built without USD; export FBX or glTF instead")
     paths = [os.path.join(folder, name) for name in file_names(colls, props)]
     if not props.overwrite:
-        extra = [p for coll, path in zip(colls, paths) for p in game.kept_paths(coll, path)]
+        extra = [p for coll, path in zip(colls, paths) for p in game.kept_paths(coll, path)
+                 + list(provenance.kept_files(coll, path))]
         existing = [p for p in paths + extra if os.path.exists(p)]
         if existing:
             more = f" (and {len(existing) - 1} more)" if len(existing) > 1 else ""
@@ -214,10 +215,11 @@ def export_steps(items, fmt: str, overwrite: bool, made_folder: bool, background
                     raise InputError(f"'{name}': {str(exc).replace(tmp, path)}; no file written") from None
                 so_far += size
                 seconds[k] = time.perf_counter() - t
-        for coll, path in items:            # a game tree's engine files beside its file
+        for coll, path in items:            # a game tree's engine files and a run's report beside its file
             stem = os.path.splitext(os.path.basename(path))[0]
-            for name, data in game.kept_files(coll, stem).items():
-                final = os.path.join(os.path.dirname(path), name)
+            beside = {os.path.join(os.path.dirname(path), name): data for name, data in game.kept_files(coll, stem).items()}
+            beside.update(provenance.kept_files(coll, path))
+            for final, data in beside.items():
                 tmp = _staging_path(final)
                 staged.append((tmp, final))
                 with open(tmp, "wb") as fh:

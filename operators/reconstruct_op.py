@@ -20,7 +20,7 @@ from ..core.loop import maybe_loop
 from ..core.reconstruct.node_motion import confidence_summary, low_share
 from ..core.reconstruct.video import open_video
 from . import jobs
-from .scene import annotation, clip_overlay, clip_view, stored
+from .scene import annotation, clip_overlay, clip_view, provenance, stored
 from .scene.build import build_tree
 from .scene.checks import missing_file, refuse
 from .scene.game import build_kwargs, game_settings, keep_engine_files
@@ -42,6 +42,12 @@ def cache_dir() -> str:
 def settings_from(props) -> pipeline.Settings:
     """Core settings from the panel's properties, through the one flat-options reader the batch and
     the API use (:func:`core.pipeline.from_flat`); tracking is cached per video and settings."""
+    return pipeline.from_flat(settings_flat(props))
+
+
+def settings_flat(props) -> dict:
+    """The panel's reconstruction settings by their flat names (:func:`core.pipeline.from_flat`'s),
+    what its report records."""
     spec = props.limb_species.strip()
     flat = dict(levels=props.levels, skeleton=props.skeleton_kind, fold_alpha=props.fold_alpha, scale=props.scale,
                 frames=frame_range(props) if props.use_frame_range else None, height_m=props.height_m,
@@ -56,7 +62,7 @@ def settings_from(props) -> pipeline.Settings:
                     max_leaf_clusters=props.max_leaf_clusters, flutter_hz=props.flutter_hz,
                     flutter_gain=props.flutter_gain,
                     leaf_colour=leaf_colour_setting(props.leaf_colour_mode, props.leaf_colour_custom))
-    return pipeline.from_flat(flat)
+    return flat
 
 
 def frame_range(props) -> str:
@@ -135,12 +141,17 @@ def tree_names(name: str, n: int) -> list[str]:
     return [name] if n == 1 else [f"{name} {k + 1}" for k in range(n)]
 
 
-def make_work(video, outline, settings: pipeline.Settings, name: str):
+def make_work(video, outline, settings: pipeline.Settings, name: str, record=None):
     """The worker's function: skeleton, lift and motion (pure core, no bpy) of every tree the
-    outline holds: ``[(Result, Tree3D), ...]`` named by :func:`tree_names`."""
+    outline holds: ``[(Result, Tree3D), ...]`` named by :func:`tree_names`. ``record`` (a
+    :class:`core.farm.report.JobRecord`, :mod:`.scene.provenance`) gets the input's identity, the
+    seconds per stage, the video read, the counts and the warnings."""
     from ..core.progress import sub_progress
 
     def work(progress):
+        if record is not None:
+            provenance.set_input(record, video, outline)
+            progress = record.timed(progress)
         # the 2D stages get their share of the expected time (pipeline.STAGE_COSTS_2D and _3D: ≈ 72 %
         # at 180 frames, 76 % at 555, since the motion solve is one sparse solve a frame), so the bar
         # moves evenly
@@ -149,7 +160,10 @@ def make_work(video, outline, settings: pipeline.Settings, name: str):
         photo = PhotoMotion() if is_photo(video) else None      # a photo sways as its form's species
         trees = pipeline.build_shot(results, settings, tree_names(name, len(results)),
                                     sub_progress(progress, split, 1.0), photo=photo)   # one scale, each where it stands
-        return list(zip(results, trees))
+        pairs = list(zip(results, trees))
+        if record is not None:
+            provenance.record_results(record, pairs)
+        return pairs
     return work
 
 
@@ -177,7 +191,9 @@ class TREE_OT_reconstruct(jobs.JobOperator, bpy.types.Operator):
         if props.build_leaves and props.leaf_image and not os.path.isfile(bpy.path.abspath(props.leaf_image)):
             raise InputError(f"leaf image '{props.leaf_image}' does not exist; pick an image file or clear the field "
                              "for the procedural leaf")
-        return Job(make_work(video, outline, settings_from(props), name))
+        flat = settings_flat(props)
+        self._record = provenance.panel_record(flat, video)
+        return Job(make_work(video, outline, pipeline.from_flat(flat), name, self._record))
 
     def done(self, context, result):
         props = context.scene.tree_video
@@ -185,9 +201,18 @@ class TREE_OT_reconstruct(jobs.JobOperator, bpy.types.Operator):
         if taken and not props.replace_existing:        # "auto" found more trees than were counted
             self.report({"ERROR"}, f"a collection named '{taken[0]}' exists; tick Replace Existing or change the name")
             return {"CANCELLED"}
+        built = []
         for res, tree in result:
-            if self._build(context, props, res, tree) is None:
+            one = self._build(context, props, res, tree)
+            if one is None:
                 return {"CANCELLED"}
+            built.append(one)
+        record = getattr(self, "_record", None)
+        if record is not None:                          # the run's report, kept with each tree it built
+            record.add(bones=sum(len(b["armature"].data.bones) for b in built))
+            record.finish("ok", None, None)
+            for b in built:
+                provenance.keep(b["collection"], record)
         return {"FINISHED"}
 
     def _build(self, context, props, res, tree):

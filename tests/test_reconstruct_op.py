@@ -1,10 +1,13 @@
 """The Reconstruct operator and its worker job: a real run, bad input, cancel at every stage."""
+import hashlib
+import json
 import os
 import time
 
 import bpy
 import numpy as np
 import pytest
+from job_report import check_report_doc
 
 import tree_from_video
 from tree_from_video.core.job import Job
@@ -198,15 +201,22 @@ def test_export_buttons_write_the_tree_and_refuse_bad_targets(addon, tmp_path):
         addon.export_format = fmt
         assert bpy.ops.tree_video.export() == {"FINISHED"}
     names = sorted(f for f in os.listdir(tmp_path / "exports") if os.path.isfile(tmp_path / "exports" / f))
-    assert names == sorted({"FBX": "Export_Me.fbx", "GLB": "Export_Me.glb", "USD": "Export_Me.usdc"}[f]
-                           for f in formats)
+    files = [{"FBX": "Export_Me.fbx", "GLB": "Export_Me.glb", "USD": "Export_Me.usdc"}[f] for f in formats]
+    assert names == sorted(files + [f + ".report.json" for f in files])       # each file with the run's report
+    doc = json.loads((tmp_path / "exports" / "Export_Me.glb.report.json").read_text())
+    check_report_doc(doc)
+    assert doc["status"] == "ok" and doc["settings"]["frames"] == "0:24" and doc["video"]["frames"] == [0, 24]
+    assert doc["input"]["sha256"] == hashlib.sha256(open(VIDEO, "rb").read()).hexdigest()
+    assert doc["counts"]["trees"] == 1 and doc["counts"]["bones"] > 50 and doc["counts"]["tracks"] > 100
+    assert {"skeleton", "lift", "motion"} <= set(doc["stages"]) and any(s.startswith("tracking") for s in doc["stages"])
+    assert doc["versions"]["blender"] == bpy.app.version_string
     fbx = tmp_path / "exports" / "Export_Me.fbx"
     before = fbx.stat().st_mtime_ns
     addon.export_format = "FBX"
     try:                                                              # exists, no overwrite
         result = bpy.ops.tree_video.export()
     except RuntimeError as exc:
-        assert str(exc) == f"Error: {fbx} exists: tick Overwrite or choose another name\n"
+        assert str(exc) == f"Error: {fbx} exists (and 1 more): tick Overwrite or choose another name\n"   # its report too
         result = {"CANCELLED"}
     assert result == {"CANCELLED"} and fbx.stat().st_mtime_ns == before
     blocker = tmp_path / "a_file"

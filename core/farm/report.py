@@ -105,14 +105,15 @@ class JobRecord:
         if message not in self.warnings:
             self.warnings.append(message)
 
-    def finish(self, status: str, message: str | None, folder: str) -> None:
+    def finish(self, status: str, message: str | None, folder: str | None) -> None:
         """Set the final status and list the files the job wrote under ``folder`` (those changed
-        since it started; the report and log excepted)."""
+        since it started; the report and log excepted; None: a job that wrote no folder, the
+        panel's, whose tree is in the scene)."""
         assert status in STATUSES, status
         self._close_stage(time.monotonic())
         self.status, self.message = status, message
         self.outputs = []
-        for root, _, files in os.walk(folder):
+        for root, _, files in os.walk(folder) if folder else ():
             for name in sorted(files):
                 path = os.path.join(root, name)
                 rel = os.path.relpath(path, folder).replace(os.sep, "/")
