@@ -23,7 +23,7 @@ import traceback
 from dataclasses import dataclass
 from types import SimpleNamespace
 
-from . import __version__, api
+from . import __version__
 from .core import jobs, pipeline
 from .core.asset.game import ENGINES, GameSettings
 from .core.detail.branch_mesh import MeshParams
@@ -42,7 +42,7 @@ from .core.params import spec
 from .core.reconstruct import node_motion, overlay, skeleton_io
 from .core.reconstruct.motion import MotionParams
 from .core.reconstruct.run import ReconstructSettings
-from .core.tree3d import save_tree
+from .core.tree3d import load_tree, save_tree
 
 
 def _default(cls: type, name: str):
@@ -540,7 +540,7 @@ def _exports_only(run: Run) -> int:
     _check_leaf_image(job.outputs.leaf_image)
     _check_out(job.out, job.outputs.files + job.outputs.game.files(), run.force)
     outputs = _blender_step(job)
-    tree = api.load_tree(job.tree)
+    tree = load_tree(job.tree)                     # exists: checked above
     _begin(run)
     run.record.add(trees=1, nodes=tree.n_nodes, leaf_clusters=tree.leaves.count if tree.leaves is not None else 0)
     run.record.timed(None)("blender outputs", 0.0)

@@ -14,9 +14,11 @@ import numpy as np
 
 from ..core import pipeline
 from ..core.errors import InputError
+from ..core.generate.batch import load_species_spec
 from ..core.generate.photo import PhotoMotion, check_photo, is_photo
 from ..core.job import Job
 from ..core.loop import maybe_loop
+from ..core.params import check
 from ..core.reconstruct.node_motion import confidence_summary, low_share
 from ..core.reconstruct.video import open_video
 from . import jobs
@@ -63,6 +65,14 @@ def settings_flat(props) -> dict:
                     flutter_gain=props.flutter_gain,
                     leaf_colour=leaf_colour_setting(props.leaf_colour_mode, props.leaf_colour_custom))
     return flat
+
+
+def photo_motion(props) -> PhotoMotion:
+    """How a photo's tree sways, from the panel's Source › Photo (checked against the core's ranges)."""
+    m = PhotoMotion(species="" if props.photo_species == "FORM" else props.photo_species,
+                    seconds=float(props.photo_seconds), wind=float(props.photo_wind))
+    check(m)
+    return m
 
 
 def frame_range(props) -> str:
@@ -141,9 +151,10 @@ def tree_names(name: str, n: int) -> list[str]:
     return [name] if n == 1 else [f"{name} {k + 1}" for k in range(n)]
 
 
-def make_work(video, outline, settings: pipeline.Settings, name: str, record=None):
+def make_work(video, outline, settings: pipeline.Settings, name: str, record=None, photo=None):
     """The worker's function: skeleton, lift and motion (pure core, no bpy) of every tree the
-    outline holds: ``[(Result, Tree3D), ...]`` named by :func:`tree_names`. ``record`` (a
+    outline holds: ``[(Result, Tree3D), ...]`` named by :func:`tree_names`; a photo's tree sways as
+    ``photo`` says (:class:`core.generate.photo.PhotoMotion`; None: its defaults). ``record`` (a
     :class:`core.farm.report.JobRecord`, :mod:`.scene.provenance`) gets the input's identity, the
     seconds per stage, the video read, the counts and the warnings."""
     from ..core.progress import sub_progress
@@ -157,9 +168,9 @@ def make_work(video, outline, settings: pipeline.Settings, name: str, record=Non
         # moves evenly
         split = pipeline.share_2d(pipeline.clip_frames(video, settings))
         results = pipeline.run_all(video, outline, settings, sub_progress(progress, 0.0, split))
-        photo = PhotoMotion() if is_photo(video) else None      # a photo sways as its form's species
+        motion = (photo or PhotoMotion()) if is_photo(video) else None      # a photo sways as a species
         trees = pipeline.build_shot(results, settings, tree_names(name, len(results)),
-                                    sub_progress(progress, split, 1.0), photo=photo)   # one scale, each where it stands
+                                    sub_progress(progress, split, 1.0), photo=motion)   # one scale, each where it stands
         pairs = list(zip(results, trees))
         if record is not None:
             provenance.record_results(record, pairs)
@@ -192,8 +203,15 @@ class TREE_OT_reconstruct(jobs.JobOperator, bpy.types.Operator):
             raise InputError(f"leaf image '{props.leaf_image}' does not exist; pick an image file or clear the field "
                              "for the procedural leaf")
         flat = settings_flat(props)
+        photo = photo_motion(props) if is_photo(video) else None
+        if photo is not None:
+            if photo.species:
+                load_species_spec(photo.species)
+            flat.update(photo_species=photo.species, photo_seconds=photo.seconds, photo_wind=photo.wind)
         self._record = provenance.panel_record(flat, video)
-        return Job(make_work(video, outline, pipeline.from_flat(flat), name, self._record))
+        return Job(make_work(video, outline, pipeline.from_flat({k: v for k, v in flat.items()
+                                                                   if not k.startswith("photo_")}),
+                             name, self._record, photo))
 
     def done(self, context, result):
         props = context.scene.tree_video
@@ -232,12 +250,13 @@ class TREE_OT_reconstruct(jobs.JobOperator, bpy.types.Operator):
         stored.store_tree(built["collection"], tree, res.info.path)     # Save Species, Generate: any tree, any time
         clip_overlay.store(res, built["collection"])
         props.leaf_polygons = built["leaf_polygons"]
-        props.motion_measured = measured_share(res)
+        photo = is_photo(res.info.path)                 # its motion is the species', not measured
+        props.motion_measured = -1.0 if photo else measured_share(res)
         for w in res.warnings:
             self.report({"WARNING"}, w)
         leaves = f", {built['leaf_polygons']:,} leaf polygons" if built["leaf_polygons"] else ""
         self.report({"INFO"}, f"{len(built['armature'].data.bones)} bones × {tree.n_frames} frames in "
-                              f"'{tree.name}'{leaves}; {motion_summary(res)}")
+                              f"'{tree.name}'{leaves}; {'swaying as its species' if photo else motion_summary(res)}")
         return built
 
 

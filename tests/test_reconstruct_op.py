@@ -268,7 +268,23 @@ def test_a_photo_reconstructs_a_swaying_tree(addon, tmp_path):
         bpy.context.scene.frame_set(f)
         tails.append(np.array(rig.matrix_world @ tip.tail))
     assert bpy.context.scene.frame_end >= 8 * 24                       # 8 s of sway
+    assert addon.motion_measured < 0                                   # nothing measured: the species' sway
     assert np.ptp(np.array(tails), axis=0).max() > 0.01               # it moves (metres)
+    # Source › Photo: another species, length and wind, recorded in the run's report
+    from tree_from_video.operators.scene import provenance
+    addon.photo_species, addon.photo_seconds, addon.photo_wind = "sparse", 3.0, 2.0
+    addon.collection_name = "Photo Sparse"
+    result, err = _run_op()
+    assert result == {"FINISHED"}, err
+    coll = bpy.data.collections["Photo Sparse"]
+    rig = next(o for o in coll.objects if o.type == "ARMATURE")
+    from tree_from_video.operators.scene.action_api import rig_action
+    start, end = rig_action(rig).frame_range
+    fps = bpy.context.scene.render.fps / bpy.context.scene.render.fps_base
+    assert (start, end) == (1, round(3 * fps) + 1)                     # 3 s at the photo's rate, both ends
+    doc = provenance.kept(coll)
+    assert (doc["settings"]["photo_species"], doc["settings"]["photo_seconds"], doc["settings"]["photo_wind"]) == \
+        ("sparse", 3.0, 2.0)
     flat = str(tmp_path / "flat.png")
     cv2.imwrite(flat, np.full((300, 400, 3), 90, np.uint8))
     addon.video_path, addon.collection_name = flat, "Flat"

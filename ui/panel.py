@@ -2,6 +2,8 @@
 panel with Source and Outline also in the Movie Clip editor's sidebar (Tree tab)."""
 import bpy
 
+from ..core.generate.photo import is_photo
+
 _INFO_CACHE: dict = {}
 
 
@@ -92,6 +94,13 @@ class TREE_PT_source(_TreePanel, bpy.types.Panel):
         props = context.scene.tree_video
         col = self.column()
         path_field(col, props, "video_path")
+        if is_photo(props.video_path):                 # one frame: its tree sways as a species
+            col.label(text="A photo: its tree sways as a species", icon="IMAGE_DATA")
+            col.prop(props, "photo_species")
+            col.prop(props, "photo_seconds")
+            col.prop(props, "photo_wind")
+            col.prop(props, "scale")
+            return
         info = _video_info(props.video_path)
         if info is not None:
             col.label(text=f"{info.width}×{info.height}, {info.frame_count} frames, {info.fps:.3g} fps",

@@ -14,6 +14,7 @@ from ..core.formats import by_flag, interchange
 from ..core.generate.batch import GenerateRequest
 from ..core.generate.forest import ForestSettings
 from ..core.generate.growth import GrowParams
+from ..core.generate.photo import PhotoMotion
 from ..core.loop import LoopSettings
 from ..core.pipeline import Settings
 from ..core.reconstruct.lift import LiftParams
@@ -55,6 +56,8 @@ CORE_FIELDS = {
     "flutter_hz": (LeafParams, "flutter_hz"),
     "flutter_gain": (LeafParams, "flutter_gain"),
     "leaf_colour_mode": (LeafParams, "colour"),
+    "photo_seconds": (PhotoMotion, "seconds"),
+    "photo_wind": (PhotoMotion, "wind"),
 }
 
 
@@ -91,6 +94,19 @@ def _library_items(self, context):
     return _LIBRARY_ITEMS
 
 
+_PHOTO_SPECIES_ITEMS: list = []
+
+
+def _photo_species_items(self, context):
+    """A photo's species: its traced form's own, or one of the library (kept referenced)."""
+    from ..core.generate.species import species_library
+    _PHOTO_SPECIES_ITEMS[:] = [("FORM", "Its Form's", "The library species of the form traced in the photo "
+                                "(a conifer sways as the conifer species, a broadleaf as the broad one)")] + [
+        (name, name.title(), f"Sway as the species fitted from the '{name}' sample video")
+        for name in sorted(species_library())]
+    return _PHOTO_SPECIES_ITEMS
+
+
 def _blend_relative() -> dict:
     """Options of a path property that may start with ``//`` (Blender 4.5+ warns without the flag;
     older versions do not have it)."""
@@ -110,7 +126,16 @@ class TreeVideoSettings(bpy.types.PropertyGroup):
     video_path: bpy.props.StringProperty(name="Video", subtype="FILE_PATH",
                                          description="Video of the tree moving in wind (mp4, mov, avi), or a "
                                                      "photo of it (jpg, png, tif, webp: the tree then sways as "
-                                                     "its form's species, 8 s)")
+                                                     "a species, Source › Photo)")
+    photo_species: bpy.props.EnumProperty(name="Sways As", items=_photo_species_items,
+                                          description="The species whose sway a photo's tree takes (its traced "
+                                                      "form's own, or one of the library)")
+    photo_seconds: bpy.props.FloatProperty(name="Length", **_core("photo_seconds", open_min=0.1, soft_max=60.0),
+                                           unit="TIME_ABSOLUTE",
+                                           description="Seconds of sway a photo's tree is given")
+    photo_wind: bpy.props.FloatProperty(name="Wind", **_core("photo_wind", soft_max=4.0),
+                                        description="A photo's sway strength (1: as in the species' source "
+                                                    "video, 2: twice as strong)")
     use_frame_range: bpy.props.BoolProperty(name="Frame Range", default=False,
                                             description="Use only part of the video")
     frame_start: bpy.props.IntProperty(name="Start", default=1, min=1,
