@@ -26,6 +26,7 @@ from types import SimpleNamespace
 from . import __version__
 from .core import jobs, pipeline
 from .core.asset.game import ENGINES, GameSettings
+from .core.detail.bark_photo import BarkPhotoParams, bark_maps, read_bark_photo, write_bark_files
 from .core.detail.branch_mesh import MeshParams
 from .core.detail.leaf_clusters import LeafParams
 from .core.detail.twigs import TwigParams
@@ -123,6 +124,20 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--bark", choices=spec(M, "bark").choices, default=_default(M, "bark"),
                    help="bark relief on the tubes: smooth (<= 0.5%% of the radius) or rough (1-5%%) "
                         "(default %(default)s)")
+    B = BarkPhotoParams
+    p.add_argument("--bark-image", action="append", metavar="PHOTO",
+                   help="a close-up photo of the bark (repeat for several): the bark becomes a seamless tile "
+                        "quilted from it (albedo, height, normal and roughness maps, DIR/bark_*.png), in the "
+                        "Blender outputs and every export, instead of the procedural bark")
+    p.add_argument("--moss", type=float, default=None,
+                   help=f"moss found in the bark photo (green), {_range(B, 'moss')}: 0 removes it, 1 as "
+                        f"photographed, 2 doubles its cover, crevices first (default {_default(B, 'moss'):g})")
+    p.add_argument("--lichen", type=float, default=None,
+                   help=f"lichen found in the bark photo (pale grey, bright yellow), {_range(B, 'lichen')}, as "
+                        f"--moss (default {_default(B, 'lichen'):g})")
+    p.add_argument("--bark-scale", type=float, default=None, metavar="CM",
+                   help=f"how much bark one tile shows on the tree, cm, {_range(B, 'scale_cm')} "
+                        f"(default {_default(B, 'scale_cm'):g})")
     p.add_argument("--no-leaves", action="store_true", help="bare branches: no leaf clusters")
     p.add_argument("--leaf-density", type=float, default=_default(LeafParams, "density"),
                    help=f"share of the leaf seeds kept, {_range(LeafParams, 'density')} (default %(default)s): "
@@ -291,6 +306,7 @@ class Run:
     force: bool = False
     quiet: bool = False
     begun: bool = False
+    bark: object | None = None              # the bark from photos (BarkMaps), made once a job
 
     @property
     def out(self) -> str:
@@ -338,6 +354,12 @@ def _run_generation(run: Run, plan, outputs, look: tuple[float, str]) -> int:
     return 0
 
 
+def _bark_files(job) -> list[str]:
+    """The bark maps' files a job with bark photos writes in its folder."""
+    from .core.detail.bark_photo import BARK_FILES
+    return list(BARK_FILES) if job.outputs.bark_images else []
+
+
 def _blender_step(job) -> object | None:
     """The Blender writers when the job asks for Blender outputs (checked against this Blender), else None."""
     if not job.outputs.formats:
@@ -352,9 +374,11 @@ def _generate_only(run: Run) -> int:
     job = run.job
     assert isinstance(job, jobs.GenerateJob)
     plan = _plan_generation(run, job.request)
-    _check_out(job.out, gb.planned_files(job.request, job.outputs.files), run.force)
+    photos = _read_bark(run)
+    _check_out(job.out, gb.planned_files(job.request, job.outputs.files) + _bark_files(job), run.force)
     outputs = _blender_step(job)
     _begin(run)
+    _make_bark(run, photos)
     return _run_generation(run, plan, outputs, (job.curliness, job.bark))
 
 
@@ -413,10 +437,12 @@ def _reconstruct(run: Run) -> int:
                          "give one outline")
     folders = [job.out] if n_trees == 1 else [os.path.join(job.out, TREE_FOLDER.format(k=k + 1))
                                               for k in range(n_trees)]
+    photos = _read_bark(run)
     for folder in folders:
-        _check_out(folder, names, run.force)
+        _check_out(folder, names + _bark_files(job), run.force)
     outputs = _blender_step(job)
     _begin(run)
+    _make_bark(run, photos)
     cb = run.record.timed(_progress_printer(run.quiet))
     results = pipeline.run_all(job.video, job.outline, settings, cb)
     info = results[0].info
@@ -439,7 +465,29 @@ def _write_blender(run: Run, outputs, tree, out: str, report=None) -> dict:
     o = run.job.outputs
     return outputs.write_outputs(tree, out, o.wanted, overwrite=run.force, leaf_image=o.leaf_image,
                                  report=report or (lambda m: sys.stderr.write(m + "\n")), loop_s=o.game.loop_s,
-                                 game=o.game, stats=run.record.counts)
+                                 game=o.game, stats=run.record.counts, bark_maps=run.bark)
+
+
+def _read_bark(run: Run) -> list:
+    """The job's bark photos read (one line for a missing or unfit one) before any work; [] without."""
+    photos = []
+    for path in run.job.outputs.bark_images:
+        if not os.path.isfile(path):
+            raise InputError(f"bark photo '{path}' does not exist; give a close-up photo of the bark")
+        photos.append(read_bark_photo(path))
+    return photos
+
+
+def _make_bark(run: Run, photos: list) -> None:
+    """The bark tile of the job's photos, its files in the job's folder (DIR/bark_*.png, bark.json)."""
+    if not photos:
+        return
+    o = run.job.outputs
+    run.bark = bark_maps(photos, o.bark, run.record.timed(_progress_printer(run.quiet)))
+    write_bark_files(run.bark, run.out, list(o.bark_images))
+    run.record.add(bark_tile_px=run.bark.textures.albedo.shape[0])
+    run.log(f"[bark] a {run.bark.scale_cm:g} cm tile from {len(photos)} photo(s): moss "
+            f"{run.bark.moss[0]:.1%} -> {run.bark.moss[1]:.1%}, lichen {run.bark.lichen[0]:.1%} -> {run.bark.lichen[1]:.1%}")
 
 
 def _write_tree(run: Run, res, tree, out: str, outputs, cb) -> None:
@@ -538,10 +586,12 @@ def _exports_only(run: Run) -> int:
     if not os.path.isfile(job.tree):
         raise InputError(f"tree file '{job.tree}' does not exist; give a tree3d.npz an earlier job wrote")
     _check_leaf_image(job.outputs.leaf_image)
-    _check_out(job.out, job.outputs.files + job.outputs.game.files(), run.force)
+    photos = _read_bark(run)
+    _check_out(job.out, job.outputs.files + job.outputs.game.files() + _bark_files(job), run.force)
     outputs = _blender_step(job)
     tree = load_tree(job.tree)                     # exists: checked above
     _begin(run)
+    _make_bark(run, photos)
     run.record.add(trees=1, nodes=tree.n_nodes, leaf_clusters=tree.leaves.count if tree.leaves is not None else 0)
     run.record.timed(None)("blender outputs", 0.0)
     _write_blender(run, outputs, tree, job.out)

@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 from typing import Any, ClassVar, Union
 
 from .asset.game import GameSettings, preset
+from .detail.bark_photo import BarkPhotoParams
 from .errors import InputError
 from .formats import FORMATS
 from .generate.batch import GenerateRequest, check_request
@@ -47,6 +48,7 @@ OPTIONS: dict[str, type] = {
     **{f.flag: bool for f in FORMATS}, "no_video": bool,
     "generate": int, "species": str, "envelope": str, "wind": float, "audio": str, "seed": int,
     "nodes": int, "frames_out": int, "seconds": float,
+    "bark_image": list, "moss": float, "lichen": float, "bark_scale": float,
 }
 #: the options that say where a job reads and writes (not its settings: not in its settings hash)
 PLACES = ("video", "outline", "out", "tree")
@@ -74,13 +76,17 @@ class JobOutputs:
     """What a job writes besides its core files: ``formats`` the Blender outputs by their registry
     flag (:data:`core.formats.FORMATS`: "fbx", "gltf"…), ``game`` the game settings they are built
     with (the engine preset applied; its ``loop_s`` the loop they carry), ``leaf_image`` (None: the
-    procedural leaf), ``npz`` the arrays of ``result.npz``, ``overlay_video`` ``overlay.mp4``."""
+    procedural leaf), ``npz`` the arrays of ``result.npz``, ``overlay_video`` ``overlay.mp4``;
+    ``bark_images`` photos of bark the bark is made from (none: procedural) with ``bark`` their
+    :class:`~.detail.bark_photo.BarkPhotoParams` (moss, lichen, the tile's scale)."""
 
     formats: tuple[str, ...] = ()
     game: GameSettings = field(default_factory=GameSettings)
     leaf_image: str | None = None
     npz: bool = False
     overlay_video: bool = True
+    bark_images: tuple[str, ...] = ()
+    bark: BarkPhotoParams = field(default_factory=BarkPhotoParams)
 
     @property
     def wanted(self) -> dict[str, bool]:
@@ -156,12 +162,14 @@ def check_types(flat: dict, where: str = "the job") -> dict:
                              "gltf, bones, ...) and give --force/--dry-run/--quiet on the line")
         if value is None:
             continue
-        ok = (isinstance(value, bool) if kind is bool else
+        ok = (isinstance(value, list) and all(isinstance(v, str) for v in value) if kind is list else
+              isinstance(value, bool) if kind is bool else
               isinstance(value, int) and not isinstance(value, bool) if kind is int else
               isinstance(value, (int, float)) and not isinstance(value, bool) if kind is float else
               isinstance(value, str))
         if not ok:
-            want = {bool: "true or false", int: "a whole number", float: "a number"}.get(kind, "a string")
+            want = {bool: "true or false", int: "a whole number", float: "a number",
+                    list: "a list of file names"}.get(kind, "a string")
             raise InputError(f"'{key}' in {where} is {json_type(value)}; give {want}")
         out[name] = value
     return out
@@ -199,7 +207,15 @@ def outputs_from(o: dict) -> JobOutputs:
                          "e.g. 10")
     if game.loop_s > 0 and not any_file:
         raise InputError(f"--loop cuts the animation of the Blender outputs; add one of {FORMAT_FLAGS}")
-    return JobOutputs(formats, game, o.get("leaf_image"), bool(o.get("npz")), not o.get("no_video"))
+    photos = tuple(o.get("bark_image") or ())
+    given = [k for k in ("moss", "lichen", "bark_scale") if o.get(k) is not None]
+    if given and not photos:
+        raise InputError(f"--{given[0].replace('_', '-')} shapes the bark made from photos; add --bark-image PHOTO")
+    d = BarkPhotoParams()
+    bark = BarkPhotoParams(moss=o.get("moss", d.moss), lichen=o.get("lichen", d.lichen),
+                           scale_cm=o.get("bark_scale", d.scale_cm))
+    check(bark)
+    return JobOutputs(formats, game, o.get("leaf_image"), bool(o.get("npz")), not o.get("no_video"), photos, bark)
 
 
 def settings_of(o: dict) -> Settings:
@@ -275,6 +291,9 @@ def _outputs_flat(out: JobOutputs) -> dict:
                 pivot_painter=g.pivot_painter, bone_texture=g.bone_texture, collision=g.collision,
                 viewer=g.viewer, impostor=g.impostor, leaf_image=out.leaf_image, npz=out.npz,
                 no_video=not out.overlay_video)
+    if out.bark_images:
+        flat.update(bark_image=list(out.bark_images), moss=float(out.bark.moss), lichen=float(out.bark.lichen),
+                    bark_scale=float(out.bark.scale_cm))
     return flat
 
 
@@ -336,7 +355,10 @@ def to_argv(flat: dict, where: str = "the job") -> list[str]:
         if key == "video":
             continue
         flag = "--" + key.replace("_", "-")
-        if OPTIONS[key] is bool:
+        if OPTIONS[key] is list:
+            for item in value:
+                argv += [flag, str(item)]
+        elif OPTIONS[key] is bool:
             argv += [flag] if value else []
         else:
             argv += [flag, repr(value) if isinstance(value, float) else str(value)]

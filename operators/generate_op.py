@@ -21,6 +21,7 @@ from ..core.loop import maybe_loop
 from ..core.progress import sub_progress
 from . import jobs
 from .scene import stored, timing, trees
+from .scene.bark_photos import panel_bark
 from .scene.build import build_tree
 from .scene.checks import missing_file, refuse
 from .scene.forest import ForestBuild
@@ -221,7 +222,8 @@ class TREE_OT_generate(jobs.JobOperator, bpy.types.Operator):
                 self.report({"INFO"}, note)
             game = game_settings(context.scene.tree_video)
             built = build_tree(context, tree, name, curliness=context.scene.tree_video.curliness,
-                               bark=context.scene.tree_video.bark, keep_view=True, **build_kwargs(game))
+                               bark=context.scene.tree_video.bark, keep_view=True,
+                               bark_maps=panel_bark(context.scene.tree_video), **build_kwargs(game))
             keep_engine_files(built, tree, game)
         except InputError as exc:
             self.report({"ERROR"}, str(exc))
@@ -275,8 +277,13 @@ class TREE_OT_generate_forest(jobs.JobOperator, bpy.types.Operator):
     # the worker's trees are built on the main thread: all at once (execute) or a few per tick (invoke)
     def done(self, context, result):
         props = context.scene.tree_video
+        try:
+            bark_maps = panel_bark(props)
+        except InputError as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
         state = ForestBuild(context, self._name, *result, curliness=props.curliness, bark=props.bark,
-                            loop_s=props.loop_seconds, game=game_settings(props))
+                            loop_s=props.loop_seconds, game=game_settings(props), bark_maps=bark_maps)
         if self._timer is None and getattr(self, "_invoked", False):
             self._pending = state
             # still a running job while the trees are built: the other buttons stay greyed and

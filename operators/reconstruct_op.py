@@ -23,6 +23,7 @@ from ..core.reconstruct.node_motion import confidence_summary, low_share
 from ..core.reconstruct.video import open_video
 from . import jobs
 from .scene import annotation, clip_overlay, clip_view, provenance, stored
+from .scene.bark_photos import panel_bark
 from .scene.build import build_tree
 from .scene.checks import missing_file, refuse
 from .scene.game import build_kwargs, game_settings, keep_engine_files
@@ -199,6 +200,7 @@ class TREE_OT_reconstruct(jobs.JobOperator, bpy.types.Operator):
         for each in tree_names(name, n):
             if bpy.data.collections.get(each) is not None and not props.replace_existing:
                 raise InputError(f"a collection named '{each}' exists; tick Replace Existing or change the name")
+        panel_bark(props)                                   # a bad bark photo: one line before any work
         if props.build_leaves and props.leaf_image and not os.path.isfile(bpy.path.abspath(props.leaf_image)):
             raise InputError(f"leaf image '{props.leaf_image}' does not exist; pick an image file or clear the field "
                              "for the procedural leaf")
@@ -242,7 +244,7 @@ class TREE_OT_reconstruct(jobs.JobOperator, bpy.types.Operator):
             game = game_settings(props)
             built = build_tree(context, tree, tree.name, replace=props.replace_existing, mesh=props.build_mesh,
                                leaf_image=bpy.path.abspath(props.leaf_image) if props.leaf_image else None,
-                               **build_kwargs(game))
+                               bark_maps=panel_bark(props), **build_kwargs(game))
             keep_engine_files(built, tree, game)
         except InputError as exc:
             self.report({"ERROR"}, str(exc))

@@ -2,6 +2,7 @@
 the command line, a job file, the farm and the API; ``to_flat`` gives the options back (the same
 job again, JSON, the same command line); bad options are one line; the API runs it as the batch
 does, report and all."""
+import argparse
 import json
 import os
 
@@ -32,7 +33,9 @@ def test_the_options_are_the_batch_parsers():
     for name, kind in jobs.OPTIONS.items():
         a = actions[name]
         assert (a.nargs == 0) == (kind is bool), name
-        if kind is not bool:
+        if kind is list:
+            assert isinstance(a, argparse._AppendAction), name                # repeated: --bark-image A --bark-image B
+        elif kind is not bool:
             assert (a.type or str) is kind, name
 
 
@@ -43,6 +46,8 @@ def test_the_options_are_the_batch_parsers():
     (["--generate", "4", "--species", "broad", "--out", "d", "--envelope", "heart", "--no-leaves", "--usd"],
      jobs.GenerateJob),
     (["--tree", "t/tree3d.npz", "--out", "d", "--engine", "godot"], jobs.ExportJob),
+    (["v.mp4", "--outline", "o.json", "--out", "d", "--gltf", "--bark-image", "a.jpg", "--bark-image", "b.jpg",
+      "--moss", "0", "--bark-scale", "30"], jobs.ReconstructJob),
 ])
 def test_each_kind_from_the_line_and_back(argv, kind):
     job = jobs.from_flat(_flat(argv))
@@ -81,6 +86,9 @@ def test_what_a_job_holds():
     ({"tree": "t.npz", "out": "d"}, "--tree builds the Blender outputs"),
     ({"video": "v.mp4", "outline": "o.json", "out": "d", "levels": 99}, "levels 99"),
     ({"video": "p.jpg", "outline": "o.json", "out": "d", "seconds": 0}, "--seconds 0"),
+    ({"video": "v.mp4", "outline": "o.json", "out": "d", "moss": 2.0}, "add --bark-image"),
+    ({"video": "v.mp4", "outline": "o.json", "out": "d", "bark_image": ["a.jpg"], "moss": 3.0}, "--moss 3"),
+    ({"video": "v.mp4", "outline": "o.json", "out": "d", "bark_image": "a.jpg"}, "a list of file names"),
 ])
 def test_bad_options_are_one_line(flat, needle):
     with pytest.raises(InputError) as exc:

@@ -290,3 +290,36 @@ def test_a_photo_reconstructs_a_swaying_tree(addon, tmp_path):
     addon.video_path, addon.collection_name = flat, "Flat"
     result, err = _run_op()
     assert result == {"CANCELLED"} and "Flat" not in bpy.data.collections
+
+
+def test_a_bark_image_makes_the_bark(addon, tmp_path):
+    """Issue 36: *Bark Image* (a synthetic close-up with moss) makes the reconstructed tree's bark a
+    material of three packed images (colour, normal, roughness) whose colour is the photo's tile;
+    a missing bark image is refused with one line and nothing built."""
+    import cv2
+    from bark_photos import bark_photo
+
+    from tree_from_video.operators.scene import materials
+    photo, _, _ = bark_photo(5)
+    path = tmp_path / "bark.jpg"
+    cv2.imwrite(str(path), photo)
+    addon.video_path, addon.outline_path, addon.collection_name = VIDEO, OUTLINE, "Mossy"
+    addon.use_frame_range, addon.frame_start, addon.frame_end = True, 1, 12
+    addon.bark_image, addon.bark_moss = str(path), 0.0
+    result, err = _run_op()
+    assert result == {"FINISHED"}, err
+    mesh = next(o for o in bpy.data.collections["Mossy"].objects if o.name.endswith("Branches"))
+    mat = mesh.data.materials[0]
+    assert mat.name.endswith("Bark") and materials.BARK_PHOTO_KEY in mat
+    images = {n.image.colorspace_settings.name for n in mat.node_tree.nodes if n.type == "TEX_IMAGE"}
+    assert len([n for n in mat.node_tree.nodes if n.type == "TEX_IMAGE"]) == 3 and images == {"sRGB", "Non-Color"}
+    albedo = next(n.image for n in mat.node_tree.nodes if n.type == "TEX_IMAGE" and n.image.colorspace_settings.name == "sRGB")
+    px = np.empty(albedo.size[0] * albedo.size[1] * 4, np.float32)
+    albedo.pixels.foreach_get(px)
+    rgb = px.reshape(-1, 4)[:, :3].mean(0) * 255
+    hsv = cv2.cvtColor(np.uint8([[rgb[::-1]]]), cv2.COLOR_BGR2HSV)[0, 0]
+    print(f"\nthe bark's colour {rgb.round(1)} (hue {hsv[0]}), from the photo's brown bark; Moss 0")
+    assert hsv[0] < 30                                                    # brown, not moss green
+    addon.bark_image, addon.collection_name, addon.replace_existing = str(tmp_path / "none.jpg"), "Other", False
+    result, err = _run_op()
+    assert result == {"CANCELLED"} and "Other" not in bpy.data.collections

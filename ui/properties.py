@@ -7,6 +7,7 @@ candidates take their defaults from :class:`MotionParams` / :class:`LiftParams` 
 import bpy
 
 from ..core.asset.game import ENGINES, GameSettings, preset
+from ..core.detail.bark_photo import BarkPhotoParams
 from ..core.detail.branch_mesh import MeshParams
 from ..core.detail.leaf_clusters import LeafParams
 from ..core.detail.twigs import TwigParams
@@ -57,6 +58,9 @@ CORE_FIELDS = {
     "flutter_gain": (LeafParams, "flutter_gain"),
     "leaf_colour_mode": (LeafParams, "colour"),
     "photo_seconds": (PhotoMotion, "seconds"),
+    "bark_moss": (BarkPhotoParams, "moss"),
+    "bark_lichen": (BarkPhotoParams, "lichen"),
+    "bark_scale": (BarkPhotoParams, "scale_cm"),
     "photo_wind": (PhotoMotion, "wind"),
 }
 
@@ -252,6 +256,18 @@ class TreeVideoSettings(bpy.types.PropertyGroup):
                ("smooth", "Smooth", "Bark relief up to 0.5% of the radius (beech, birch)"),
                ("rough", "Rough", "Bark relief of 1-5% of the radius (oak, pine)")],
         description="Relief of the bark around the branch tubes")
+    bark_image: bpy.props.StringProperty(name="Bark Image", subtype="FILE_PATH", **_blend_relative(),
+                                         description="A close-up photo of the bark: the bark becomes a seamless "
+                                                     "tile quilted from it (colour, relief, roughness) instead of the "
+                                                     "procedural one, in every export (empty: procedural)")
+    bark_moss: bpy.props.FloatProperty(name="Moss", **_core("bark_moss"), subtype="FACTOR",
+                                       description="Moss found in the bark photo (green): 0 removes it, 1 as "
+                                                   "photographed, 2 doubles its cover, crevices first")
+    bark_lichen: bpy.props.FloatProperty(name="Lichen", **_core("bark_lichen"), subtype="FACTOR",
+                                         description="Lichen found in the bark photo (pale grey, bright yellow): "
+                                                     "0 removes it, 1 as photographed, 2 doubles its cover")
+    bark_scale: bpy.props.FloatProperty(name="Bark Scale (cm)", **_core("bark_scale", open_min=1.0, soft_max=300.0),
+                                        description="How much bark one tile of the photo's bark shows on the tree, cm")
     build_leaves: bpy.props.BoolProperty(name="Leaves", default=True,
                                          description="Leaf clusters where the video shows foliage (seeds: Harris corners "
                                                      "of frame 1), riding their branches with their own flutter")

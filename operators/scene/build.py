@@ -35,7 +35,8 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
                leaf_image: str | None = None, curliness: float | None = None,
                bark: str | None = None, materials: dict | None = None, update_frame: bool = True,
                keep_view: bool = False, every_key: bool = False, bone_budget: int | None = None,
-               lods: int = 1, pivots: bool = False, collision: bool = False, impostor: bool = False) -> dict:
+               lods: int = 1, pivots: bool = False, collision: bool = False, impostor: bool = False,
+               bark_maps=None) -> dict:
     """Create the animated tree in a new collection ``collection_name`` under the scene collection
     (unselected, its rig active, at the scene's first frame; with ``keep_view`` the selection, the
     active object and the current frame stay as they were: a tree generated into a scene).
@@ -77,7 +78,9 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
     atlas rendered from LOD0 at rest (:mod:`.impostor`) and a crossed-billboard card as the last
     level ``"<name>_LOD<k>"`` (LOD objects are built even for one level); its files' bytes
     returned as ``"impostor"`` ({} without). The core's :class:`core.asset.TreeAsset` is returned
-    as ``"asset"`` (what the engine files are written from).
+    as ``"asset"`` (what the engine files are written from). ``bark_maps`` (a
+    :class:`core.detail.bark_photo.BarkMaps`): the bark from photos of bark instead of the
+    procedural one (:func:`.materials.photo_bark_material`).
 
     Returns ``{"collection", "armature", "mesh" (or None), "action", "keys" (the kept keys,
     :class:`core.keys.TreeKeys`, or None with ``every_key``), "material" (or None), "leaves" (or
@@ -139,6 +142,13 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
         t = time.perf_counter()
         if asset.branches is not None:
             material = (materials or {}).get("bark")
+            if material is None and bark_maps is not None:      # bark from photos of bark
+                from ...core.detail.bark_photo import uv_square
+                albedo, normal, rough, repeats = uv_square(bark_maps, float(tree.radius[0]))
+                material = created.add(bpy.data.materials, mats.photo_bark_material(
+                    names["material"], albedo, normal, rough, repeats))
+                for img in mats.material_images(material):
+                    created.add(bpy.data.images, img)
             if material is None:
                 material = created.add(bpy.data.materials, mats.bark_material(
                     names["material"], look.mesh.bark, look.bark_colour))

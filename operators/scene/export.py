@@ -366,7 +366,7 @@ def _baked_bark(objects):
     procedural nodes, which formats carrying images only drop (the bark arrived white in GLB and
     FBX). The procedural links, the nodes and the images are put back / removed afterwards."""
     from ...core.detail.bark_texture import bark_textures
-    from .materials import BARK_COLOUR_KEY, BARK_KEY, packed_image
+    from .materials import BARK_COLOUR_KEY, BARK_KEY, BARK_PHOTO_KEY, packed_image
 
     def rgba(rgb):                  # uint8 (S, S, 3), row 0 at the bottom (UV v = 0) → float RGBA
         out = np.ones(rgb.shape[:2] + (4,), np.float32)
@@ -374,7 +374,7 @@ def _baked_bark(objects):
         return out
     done: list = []
     try:
-        for mat in (m for m in _materials(objects) if BARK_KEY in m):
+        for mat in (m for m in _materials(objects) if BARK_KEY in m and BARK_PHOTO_KEY not in m):
             nt = mat.node_tree
             bsdf = next((n for n in nt.nodes if n.type == "BSDF_PRINCIPLED"), None)
             if bsdf is None:

@@ -20,6 +20,10 @@ BARK_KEY = "tree_video_bark"
 BARK_COLOUR_KEY = "tree_video_bark_colour"
 
 
+#: custom property of a bark made from photos of bark (its images are real: nothing to bake at export)
+BARK_PHOTO_KEY = "tree_video_bark_photo"
+
+
 #: a material whose Principled Alpha is alpha-tested at 0.5 (the glTF export writes it as MASK)
 ALPHA_CLIP_KEY = "tree_video_alpha_clip"
 
@@ -92,6 +96,51 @@ def bark_material(name: str, kind: str = "none", colour=None) -> bpy.types.Mater
         link(bsdf.outputs["BSDF"], out.inputs["Surface"])
     except BaseException:
         bpy.data.materials.remove(mat)
+        raise
+    return mat
+
+
+def photo_bark_material(name: str, albedo: np.ndarray, normal: np.ndarray, roughness: np.ndarray,
+                        repeats: int) -> bpy.types.Material:
+    """A Principled BSDF bark from photos of bark (:mod:`core.detail.bark_photo`): the UV square's
+    ``albedo (P, P, 3)`` uint8 sRGB into Base Color, ``normal`` (tangent space) through a Normal Map
+    node, ``roughness (P, P)`` in [0, 1] into Roughness; three images packed into the .blend, which
+    every exporter carries (glTF ``baseColorTexture``/``normalTexture``, FBX embedded, USD beside).
+    The name keeps ``Bark``; ``repeats`` tiles go once round the trunk. The caller removes it (and
+    its images, :func:`material_images`) on failure."""
+    def rgba(a: np.ndarray) -> np.ndarray:          # (P, P[, 3]) uint8/float, row 0 at the top → Blender's
+        f = a.astype(np.float32) / (255.0 if a.dtype == np.uint8 else 1.0)
+        f = np.repeat(f[..., None], 3, -1) if f.ndim == 2 else f
+        out = np.ones(f.shape[:2] + (4,), np.float32)
+        out[..., :3] = f[::-1]
+        return out
+    mat = bpy.data.materials.new(name)
+    images: list = []
+    try:
+        mat.diffuse_color = (*(srgb_to_linear(albedo.reshape(-1, 3).mean(0) / 255.0)).tolist(), 1.0)
+        mat[BARK_KEY] = "photo"
+        mat[BARK_PHOTO_KEY] = int(repeats)
+        nt, out, bsdf = principled_nodes(mat)
+        for suffix, pixels, space in (("albedo", albedo, "sRGB"), ("normal", normal, "Non-Color"),
+                                      ("roughness", roughness, "Non-Color")):
+            images.append(packed_image(f"{name} {suffix}", rgba(pixels), space, False))
+        a_node, n_node, r_node, map_node = (nt.nodes.new(t) for t in ("ShaderNodeTexImage", "ShaderNodeTexImage",
+                                                                      "ShaderNodeTexImage", "ShaderNodeNormalMap"))
+        for node, img in zip((a_node, n_node, r_node), images):
+            node.image = img
+        for i, node in enumerate((a_node, n_node, r_node)):
+            node.location = (-700, 300 - 300 * i)
+        map_node.location, bsdf.location, out.location = (-350, -300), (0, 0), (300, 0)
+        link = nt.links.new
+        link(a_node.outputs["Color"], bsdf.inputs["Base Color"])
+        link(r_node.outputs["Color"], bsdf.inputs["Roughness"])
+        link(n_node.outputs["Color"], map_node.inputs["Color"])
+        link(map_node.outputs["Normal"], bsdf.inputs["Normal"])
+        link(bsdf.outputs["BSDF"], out.inputs["Surface"])
+    except BaseException:
+        bpy.data.materials.remove(mat)
+        for img in images:
+            bpy.data.images.remove(img)
         raise
     return mat
 

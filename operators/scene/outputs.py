@@ -38,7 +38,8 @@ def check_wanted(wanted: dict) -> None:
 
 def write_outputs(tree: Tree3D, out_dir: str, wanted: dict, overwrite: bool = False,
                   fresh_scene: bool = True, report=print, leaf_image: str | None = None,
-                  loop_s: float = 0.0, game: GameSettings | None = None, stats: dict | None = None) -> dict:
+                  loop_s: float = 0.0, game: GameSettings | None = None, stats: dict | None = None,
+                  bark_maps=None) -> dict:
     """Build ``tree`` in the scene and write the ``wanted`` files into ``out_dir``.
 
     ``wanted`` = {format flag: bool} (:mod:`core.formats`); ``fresh_scene`` starts from an empty
@@ -46,6 +47,7 @@ def write_outputs(tree: Tree3D, out_dir: str, wanted: dict, overwrite: bool = Fa
     seconds first (:func:`core.loop.loop_tree`); ``game`` the game export's bone budget, levels of
     detail and engine files (:class:`core.asset.game.GameSettings`); returns {format flag: path}.
     ``stats`` (a job's counts) gets the built rig's bones and the first level's triangles added.
+    ``bark_maps``: the bark from photos of bark (:mod:`core.detail.bark_photo`; None: procedural).
     """
     check_wanted(wanted)
     game = game or GameSettings()
@@ -62,7 +64,8 @@ def write_outputs(tree: Tree3D, out_dir: str, wanted: dict, overwrite: bool = Fa
     if fresh_scene:
         bpy.ops.wm.read_factory_settings(use_empty=True)
     context = bpy.context
-    built = build_tree(context, tree, tree.name, replace=True, leaf_image=leaf_image, **build_kwargs(game))
+    built = build_tree(context, tree, tree.name, replace=True, leaf_image=leaf_image, bark_maps=bark_maps,
+                       **build_kwargs(game))
     if built["budget"] is not None:
         report(f"[bones] {built['budget'].line()}")
     if built["lods"]:

@@ -1,0 +1,31 @@
+"""The panel's *Bark Image*: the bark tile made from it (:mod:`core.detail.bark_photo`), once per
+photo and settings (a forest's trees, a second Reconstruct and a Generate reuse it), for
+:func:`.build.build_tree`'s ``bark_maps``."""
+from __future__ import annotations
+
+import os
+
+import bpy
+
+from ...core.detail.bark_photo import BarkMaps, BarkPhotoParams, bark_maps, read_bark_photo
+from ...core.errors import InputError
+
+_CACHE: dict = {}
+
+
+def panel_bark(props) -> BarkMaps | None:
+    """The bark tile of the panel's *Bark Image* with its *Moss*, *Lichen* and *Bark Scale*; None
+    when no image is set; :class:`InputError` (one line) for a missing or unfit photo."""
+    path = bpy.path.abspath(props.bark_image.strip()) if props.bark_image.strip() else ""
+    if not path:
+        return None
+    if not os.path.isfile(path):
+        raise InputError(f"bark image '{props.bark_image}' does not exist; pick a close-up photo of the bark or "
+                         "clear the field for the procedural bark")
+    params = BarkPhotoParams(moss=float(props.bark_moss), lichen=float(props.bark_lichen),
+                             scale_cm=float(props.bark_scale))
+    key = (path, os.path.getmtime(path), params.moss, params.lichen, params.scale_cm)
+    if key not in _CACHE:
+        _CACHE.clear()
+        _CACHE[key] = bark_maps([read_bark_photo(path)], params)
+    return _CACHE[key]

@@ -1,0 +1,74 @@
+"""Bark from photos in the product (issue 36): ``batch.py VIDEO ... --bark-image PHOTO --gltf``
+writes the tile's maps beside the tree and a GLB whose bark material carries them
+(``baseColorTexture``, ``normalTexture``, read back from the file as the glTF 2.0 specification lays
+them out: images in bufferViews); a bad bark photo is one line, exit 2, nothing written."""
+import json
+import os
+import subprocess
+import sys
+
+import cv2
+import numpy as np
+import pytest
+from bark_photos import bark_photo
+from job_report import check_report
+from test_exports import read_glb
+
+from samples import ROOT, committed
+
+pytestmark = [pytest.mark.bpy53]
+
+BATCH = os.path.join(ROOT, "batch.py")
+VIDEO = os.path.join(committed("broad"), "video.mp4")
+OUTLINE = os.path.join(committed("broad"), "outline.json")
+QUICK = ["--frames", "0:12", "--no-video", "--levels", "4", "--twigs", "0", "--no-leaves", "--quiet"]
+
+
+def run(*args):
+    p = subprocess.run([sys.executable, BATCH, *map(str, args)], capture_output=True, text=True, timeout=900)
+    return p.returncode, p.stderr
+
+
+def glb_image(doc, binary, index) -> np.ndarray:
+    """Image ``index`` of a GLB, decoded (BGR) from its bufferView."""
+    view = doc["bufferViews"][doc["images"][index]["bufferView"]]
+    start = view.get("byteOffset", 0)
+    return cv2.imdecode(np.frombuffer(binary[start:start + view["byteLength"]], np.uint8), cv2.IMREAD_COLOR)
+
+
+def test_the_bark_photo_reaches_the_glb(tmp_path):
+    photo, _, _ = bark_photo(7)
+    path = tmp_path / "bark.jpg"
+    cv2.imwrite(str(path), photo)
+    out = tmp_path / "oak"
+    code, err = run(VIDEO, "--outline", OUTLINE, "--out", out, *QUICK, "--gltf", "--bark-image", path,
+                    "--moss", "0", "--bark-scale", "40")
+    assert code == 0, err
+    for name in ("bark_albedo.png", "bark_normal.png", "bark_roughness.png", "bark_height.png", "bark.json"):
+        assert (out / name).is_file(), name
+    info = json.loads((out / "bark.json").read_text())
+    assert info["tile_cm"] == 40.0 and info["moss_cover"]["tile"] == 0.0
+    report = check_report(out)
+    assert report["settings"]["bark_image"] == [str(path)] and "bark" in report["stages"]
+    doc, binary = read_glb(out / "tree.glb")
+    bark = next(m for m in doc["materials"] if "Bark" in m["name"])
+    pbr = bark["pbrMetallicRoughness"]
+    albedo = glb_image(doc, binary, doc["textures"][pbr["baseColorTexture"]["index"]]["source"])
+    normal = glb_image(doc, binary, doc["textures"][bark["normalTexture"]["index"]]["source"])
+    tile = cv2.imread(str(out / "bark_albedo.png"))
+    print(f"\nGLB bark: albedo {albedo.shape}, mean {albedo.reshape(-1, 3).mean(0).round(1)} "
+          f"(tile {tile.reshape(-1, 3).mean(0).round(1)}); normal mean {normal.reshape(-1, 3).mean(0).round(1)}")
+    assert np.abs(albedo.reshape(-1, 3).mean(0) - tile.reshape(-1, 3).mean(0)).max() < 4.0     # the tile, repeated
+    assert normal[..., 0].mean() > 200 and abs(normal[..., 2].mean() - 128) < 12              # +Z out (BGR: B = z)
+    assert "metallicRoughnessTexture" in pbr
+
+
+def test_a_bad_bark_photo_is_one_line(tmp_path):
+    tiny = tmp_path / "tiny.png"
+    cv2.imwrite(str(tiny), np.full((40, 40, 3), 90, np.uint8))
+    for photo, needle in ((tmp_path / "none.jpg", "does not exist"), (tiny, "at least 160 px")):
+        out = tmp_path / f"out_{photo.stem}"
+        code, err = run(VIDEO, "--outline", OUTLINE, "--out", out, *QUICK, "--bark-image", photo)
+        lines = [ln for ln in err.splitlines() if ln.strip()]
+        assert code == 2 and len(lines) == 1 and needle in lines[0], err
+        assert not out.exists()
