@@ -1,0 +1,55 @@
+"""GUI run (issue 36): the bark made from a photo of bark (a synthetic close-up with moss and
+lichen, tests/bark_photos.py, seed 5) on a reconstructed tree's trunk, Material Preview in the real
+Blender, beside the same tree with the procedural rough bark. For the README's picture.
+
+    real-blender gui-shot OUT.png --size 1400x900 --wait 30 -- \
+        blender --factory-startup --python tests/gui/bark_shot.py
+"""
+import os
+import sys
+import tempfile
+
+import bpy
+import cv2
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))   # this folder: _addon.py
+from _addon import ROOT, register_with_sample  # noqa: E402
+
+sys.path.insert(0, os.path.join(ROOT, "tests"))
+register_with_sample()
+for ob in list(bpy.data.objects):          # an empty stage
+    bpy.data.objects.remove(ob)
+from tree_from_video.core.detail.bark_photo import BarkPhotoParams, bark_maps  # noqa: E402
+from tree_from_video.operators.scene import build  # noqa: E402
+
+from bark_photos import bark_photo  # noqa: E402
+from trees import broad_tree  # noqa: E402
+
+photo, _, _ = bark_photo(5, size=(720, 960))
+cv2.imwrite(os.path.join(tempfile.gettempdir(), "tfv_bark_photo.jpg"), photo)
+maps = bark_maps([photo], BarkPhotoParams(scale_cm=60.0))
+tree = broad_tree(24)
+plain = build.build_tree(bpy.context, tree, "Procedural", bark="rough", leaves=False)
+photo_tree = build.build_tree(bpy.context, tree, "From Photo", leaves=False, bark_maps=maps)
+photo_tree["armature"].location.x = 1.0
+print(f"bark tile: moss {maps.moss[0]:.1%} -> {maps.moss[1]:.1%}, lichen {maps.lichen[0]:.1%} -> {maps.lichen[1]:.1%}",
+      flush=True)
+
+
+def show():
+    if bpy.context.window.screen is None:
+        return 0.3
+    area = next(a for a in bpy.context.window.screen.areas if a.type == "VIEW_3D")
+    space = area.spaces.active
+    space.shading.type = "MATERIAL"
+    space.overlay.show_overlays = False
+    r3d = space.region_3d
+    r3d.view_perspective = "PERSP"
+    r3d.view_rotation = (0.71, 0.70, 0.0, 0.0)            # from the front, level
+    r3d.view_location = (0.5, 0.0, 0.7)
+    r3d.view_distance = 1.9
+    print("ui ready", flush=True)
+    return None
+
+
+bpy.app.timers.register(show, first_interval=1.0)
