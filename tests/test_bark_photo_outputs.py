@@ -41,7 +41,7 @@ def test_the_bark_photo_reaches_the_glb(tmp_path):
     path = tmp_path / "bark.jpg"
     cv2.imwrite(str(path), photo)
     out = tmp_path / "oak"
-    code, err = run(VIDEO, "--outline", OUTLINE, "--out", out, *QUICK, "--gltf", "--bark-image", path,
+    code, err = run(VIDEO, "--outline", OUTLINE, "--out", out, *QUICK, "--gltf", "--usd", "--bark-image", path,
                     "--moss", "0", "--bark-scale", "40")
     assert code == 0, err
     for name in ("bark_albedo.png", "bark_normal.png", "bark_roughness.png", "bark_height.png", "bark.json"):
@@ -61,6 +61,9 @@ def test_the_bark_photo_reaches_the_glb(tmp_path):
     assert np.abs(albedo.reshape(-1, 3).mean(0) - tile.reshape(-1, 3).mean(0)).max() < 4.0     # the tile, repeated
     assert normal[..., 0].mean() > 200 and abs(normal[..., 2].mean() - 128) < 12              # +Z out (BGR: B = z)
     assert "metallicRoughnessTexture" in pbr
+    written = sorted(os.listdir(out / "textures"))                    # USD: the images beside it
+    assert [n for n in written if "Bark" in n] == ["Tree_video_Bark_albedo.png", "Tree_video_Bark_normal.png",
+                                                   "Tree_video_Bark_roughness.png"]
 
 
 def test_a_bad_bark_photo_is_one_line(tmp_path):

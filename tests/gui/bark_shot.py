@@ -19,10 +19,11 @@ sys.path.insert(0, os.path.join(ROOT, "tests"))
 register_with_sample()
 for ob in list(bpy.data.objects):          # an empty stage
     bpy.data.objects.remove(ob)
+from bark_photos import bark_photo  # noqa: E402
+
 from tree_from_video.core.detail.bark_photo import BarkPhotoParams, bark_maps  # noqa: E402
 from tree_from_video.operators.scene import build  # noqa: E402
 
-from bark_photos import bark_photo  # noqa: E402
 from trees import broad_tree  # noqa: E402
 
 photo, _, _ = bark_photo(5, size=(720, 960))
