@@ -22,7 +22,6 @@ from the camera, z up), ``radius (N,)`` metres, ``fps``, ``leaves`` and ``meta``
 from __future__ import annotations
 
 import dataclasses
-import io
 import os
 import sys
 from typing import Any
@@ -139,32 +138,18 @@ def run_job(job: "jobs.Job | dict", force: bool = False, quiet: bool = True) -> 
     if not flat.get("out"):
         raise InputError("the job has no out folder; give out=FOLDER")
     jobs.from_flat(flat, "api.run_job()")            # its options' errors raised here, before any folder
-    said = io.StringIO()
+    said: list[str] = []
     stderr = sys.stderr
-    sys.stderr = _Both(stderr, said)                # the runner's one line, should it refuse the job
+    sys.stderr = cli.Tee(stderr, said)              # the runner's one line, should it refuse the job
     try:
         code = cli.main(jobs.to_argv(flat) + (["--force"] if force else []) + (["--quiet"] if quiet else []))
     finally:
         sys.stderr = stderr
     report = read_report(flat["out"]) or {}
     if code == 2:
-        errors = [ln[len("error: "):] for ln in said.getvalue().splitlines() if ln.startswith("error: ")]
+        errors = [ln[len("error: "):] for ln in "".join(said).splitlines() if ln.startswith("error: ")]
         raise InputError(report.get("message") or (errors[-1] if errors else f"the job in {flat['out']} was refused"))
     return report
-
-
-class _Both:
-    """A stream that writes to two."""
-
-    def __init__(self, a, b):
-        self._a, self._b = a, b
-
-    def write(self, text: str) -> int:
-        self._b.write(text)
-        return self._a.write(text)
-
-    def __getattr__(self, name):
-        return getattr(self._a, name)
 
 
 def loop(tree: Tree3D, seconds: float) -> Tree3D:

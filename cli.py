@@ -564,7 +564,7 @@ def record(job: jobs.Job | dict, argv: list[str]) -> JobRecord:
                      input=identity.input_identity(video, outline))
 
 
-class _Tee:
+class Tee:
     """stderr that also keeps its lines for job.log."""
 
     def __init__(self, stream, lines: list[str]):
@@ -627,7 +627,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     lines: list[str] = []
     stderr = sys.stderr
-    sys.stderr = _Tee(stderr, lines)
+    sys.stderr = Tee(stderr, lines)
     run: Run | None = None
     flat: dict = {}
     prior, status, message = None, "ok", None
