@@ -41,6 +41,7 @@ from .core.generate import species
 from .core.generate.photo import check_photo
 from .core.params import spec
 from .core.reconstruct import node_motion, overlay, skeleton_io
+from .core.reconstruct.lift import LiftParams
 from .core.reconstruct.motion import MotionParams
 from .core.reconstruct.run import ReconstructSettings
 from .core.tree3d import load_tree, save_tree
@@ -107,6 +108,25 @@ def build_parser() -> argparse.ArgumentParser:
                    help="where the 3D lift takes the depth one view cannot show: learned (default: a network "
                         "trained on synthetic trees predicts from frame 1 how far each branch and the crown reach "
                         "from the trunk's plane) or envelope (the outline turned about the trunk, as the paper)")
+    Mo, Li = MotionParams, LiftParams
+    p.add_argument("--fold-alpha", type=float, default=_default(R, "fold_alpha"),
+                   help=f"--skeleton paper: share of the way each node moves toward its parent, "
+                        f"{_range(R, 'fold_alpha')} (default %(default)s; paper 0.4)")
+    p.add_argument("--candidates", type=int, default=_default(Li, "candidates"),
+                   help=f"depths tried for each branch in the 3D lift, {_range(Li, 'candidates')} "
+                        "(default %(default)s; paper: L)")
+    p.add_argument("--sigma-track", type=float, default=_default(Mo, "sigma_track"),
+                   help=f"how far a solved branch may stray from its tracked 2D position, share of the height, "
+                        f"{_range(Mo, 'sigma_track')} (default %(default)s; paper: σ_track)")
+    p.add_argument("--sigma-shape", type=float, default=_default(Mo, "sigma_shape"),
+                   help=f"how far a branch's angle to its parent may drift from frame 1's at the trunk, radians, "
+                        f"{_range(Mo, 'sigma_shape')} (default %(default)s; paper: σ_shape)")
+    p.add_argument("--max-step", type=float, default=_default(Mo, "max_step"),
+                   help=f"largest turn of a branch from one frame to the next, radians per axis, "
+                        f"{_range(Mo, 'max_step')} (default %(default)s)")
+    p.add_argument("--max-total", type=float, default=_default(Mo, "max_total"),
+                   help=f"largest total turn of a branch from its frame-1 pose, radians, {_range(Mo, 'max_total')} "
+                        "(default %(default).4g; paper: Δ)")
     p.add_argument("--solver", choices=spec(MotionParams, "solver").choices, default=_default(MotionParams, "solver"),
                    help="3D motion solver (default probabilistic, paper §4; deterministic: sphere/line-of-sight "
                         "baseline)")
@@ -150,6 +170,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="leaf colour: albedo (the video's foliage corrected for exposure and white balance; a "
                         "plausible green where the video shows a dark or backlit silhouette), video (the raw "
                         "sample) or #RRGGBB (default %(default)s)")
+    p.add_argument("--flutter-gain", type=float, default=_default(LeafParams, "flutter_gain"),
+                   help=f"leaf flutter strength per unit of branch speed, s, {_range(LeafParams, 'flutter_gain')} "
+                        "(default %(default)s)")
+    p.add_argument("--max-leaf-clusters", type=int, default=_default(LeafParams, "max_clusters"),
+                   help=f"at most this many leaf clusters, {_range(LeafParams, 'max_clusters')} (default %(default)s)")
     p.add_argument("--leaf-image", help="image of one leaf (alpha = shape) instead of the procedural leaf")
     p.add_argument("--engine", choices=sorted(ENGINES), default=None,
                    help="a game engine's preset (what it reads, how it loops, its LODs and engine files): "

@@ -49,6 +49,8 @@ OPTIONS: dict[str, type] = {
     "generate": int, "species": str, "envelope": str, "wind": float, "audio": str, "seed": int,
     "nodes": int, "frames_out": int, "seconds": float,
     "bark_image": list, "moss": float, "lichen": float, "bark_scale": float,
+    "fold_alpha": float, "candidates": int, "sigma_track": float, "sigma_shape": float, "max_step": float,
+    "max_total": float, "flutter_gain": float, "max_leaf_clusters": int,
 }
 #: the options that say where a job reads and writes (not its settings: not in its settings hash)
 PLACES = ("video", "outline", "out", "tree")
@@ -59,7 +61,9 @@ SETTINGS = {"levels": "levels", "frames": "frames", "skeleton": "skeleton", "sca
             "limbs": "limbs", "limb_species": "limb_species", "depth": "depth", "solver": "solver",
             "height": "height_m", "twigs": "twigs", "curliness": "curliness", "bark": "bark",
             "leaf_density": "leaf_density", "leaf_cards": "leaf_cards", "flutter_hz": "flutter_hz",
-            "leaf_colour": "leaf_colour"}
+            "leaf_colour": "leaf_colour", "fold_alpha": "fold_alpha", "candidates": "candidates",
+            "sigma_track": "sigma_track", "sigma_shape": "sigma_shape", "max_step": "max_step",
+            "max_total": "max_total", "flutter_gain": "flutter_gain", "max_leaf_clusters": "max_leaf_clusters"}
 #: options of a generation only (a photo's sway takes ``species`` and ``seconds`` too)
 GENERATION_ONLY = ("species", "envelope", "audio", "frames_out", "seconds")
 FORMAT_FLAGS = ", ".join("--" + f.flag for f in FORMATS)
@@ -303,10 +307,13 @@ def _settings_flat(s: Settings) -> dict:
             "form": s.form, "limbs": s.limbs, "limb_species": s.limb_species, "depth": s.depth,
             "solver": s.motion.solver, "height": float(s.height_m), "twigs": int(s.twigs.depth),
             "no_branch_fit": not s.fit_branches, "curliness": float(s.curliness), "bark": s.bark,
-            "no_leaves": leaves is None}
+            "no_leaves": leaves is None, "fold_alpha": float(s.fold_alpha), "candidates": int(s.lift.candidates),
+            "sigma_track": float(s.motion.sigma_track), "sigma_shape": float(s.motion.sigma_shape),
+            "max_step": float(s.motion.max_step), "max_total": float(s.motion.max_total)}
     if leaves is not None:
         flat.update(leaf_density=float(leaves.density), leaf_cards=int(leaves.cards),
-                    flutter_hz=float(leaves.flutter_hz), leaf_colour=leaves.colour)
+                    flutter_hz=float(leaves.flutter_hz), leaf_colour=leaves.colour,
+                    flutter_gain=float(leaves.flutter_gain), max_leaf_clusters=int(leaves.max_clusters))
     return flat
 
 

@@ -23,7 +23,7 @@ from .generate.limbs import LIMB_SOURCES, grown_limbs, limb_species
 from .generate.photo import PhotoMotion, species_for
 from .generate.photo import sway as photo_sway
 from .meta import TreeMeta
-from .params import param, same_as
+from .params import check, param, same_as
 from .progress import ProgressFn, expected_seconds, stage_split, sub_progress
 from .reconstruct.branch_fit import fit_to_video, measure_branches, tree_map
 from .reconstruct.foreground import foreground
@@ -133,6 +133,8 @@ def from_flat(flat: dict) -> Settings:
 def check_settings(s: Settings) -> None:
     """Raise :class:`InputError` for the first setting out of range (2D stages, twigs, mesh, leaves)."""
     check_reconstruct(s)
+    check(s.motion)
+    check(s.lift)
     if not s.height_m > 0:
         raise InputError(f"tree height {s.height_m} m is not positive; give e.g. 10")
     check_twig_params(s.twigs)

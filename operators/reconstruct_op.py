@@ -12,13 +12,13 @@ import os
 import bpy
 import numpy as np
 
+from ..core import jobs as jobs_core
 from ..core import pipeline
 from ..core.errors import InputError
 from ..core.generate.batch import load_species_spec
 from ..core.generate.photo import PhotoMotion, check_photo, is_photo
 from ..core.job import Job
 from ..core.loop import maybe_loop
-from ..core.params import check
 from ..core.reconstruct.node_motion import confidence_summary, low_share
 from ..core.reconstruct.video import open_video
 from . import jobs
@@ -42,24 +42,18 @@ def cache_dir() -> str:
     return os.path.join(tempfile.gettempdir(), "tree_from_video_cache")
 
 
-def settings_from(props) -> pipeline.Settings:
-    """Core settings from the panel's properties, through the one flat-options reader the batch and
-    the API use (:func:`core.pipeline.from_flat`); tracking is cached per video and settings."""
-    return pipeline.from_flat(settings_flat(props))
-
-
-def settings_flat(props) -> dict:
-    """The panel's reconstruction settings by their flat names (:func:`core.pipeline.from_flat`'s),
-    what its report records."""
+def panel_options(props) -> dict:
+    """The panel's reconstruction settings by the batch options' names (:data:`core.jobs.OPTIONS`):
+    what :func:`core.jobs.from_flat` builds the panel's job from, as it does the command line's."""
     spec = props.limb_species.strip()
     flat = dict(levels=props.levels, skeleton=props.skeleton_kind, fold_alpha=props.fold_alpha, scale=props.scale,
-                frames=frame_range(props) if props.use_frame_range else None, height_m=props.height_m,
-                cache_dir=cache_dir(), form=props.form, conifer=props.conifer, limbs=props.limbs,
+                frames=frame_range(props) if props.use_frame_range else None, height=props.height_m,
+                form=props.form, conifer=props.conifer, limbs=props.limbs,
                 limb_species=bpy.path.abspath(spec) if spec.lower().endswith(".json") else spec,
                 candidates=props.candidates, solver=props.solver, sigma_track=props.sigma_track,
                 sigma_shape=props.sigma_shape, max_step=props.max_step, max_total=props.max_total,
-                twigs=props.twig_depth, fit_branches=props.fit_branches, curliness=props.curliness, bark=props.bark,
-                leaves=props.build_leaves, depth=props.depth_source)
+                twigs=props.twig_depth, no_branch_fit=not props.fit_branches, curliness=props.curliness,
+                bark=props.bark, no_leaves=not props.build_leaves, depth=props.depth_source)
     if props.build_leaves:
         flat.update(leaf_density=props.leaf_density, leaf_cards=props.leaf_cards,
                     max_leaf_clusters=props.max_leaf_clusters, flutter_hz=props.flutter_hz,
@@ -68,12 +62,30 @@ def settings_flat(props) -> dict:
     return flat
 
 
-def photo_motion(props) -> PhotoMotion:
-    """How a photo's tree sways, from the panel's Source › Photo (checked against the core's ranges)."""
-    m = PhotoMotion(species="" if props.photo_species == "FORM" else props.photo_species,
+def settings_from(props) -> pipeline.Settings:
+    """Core settings from the panel's properties, as the batch reads its options
+    (:func:`core.jobs.settings_of`); tracking is cached per video and settings."""
+    s = jobs_core.settings_of(jobs_core.check_types(panel_options(props), "the panel"))
+    s.cache_dir = cache_dir()
+    return s
+
+
+#: the outline of a panel job whose outline is drawn in Blender (a Mask, an annotation): no file
+DRAWN = "drawn in Blender"
+
+
+def panel_job(props, video: str, outline):
+    """The panel's run as a typed job (:func:`core.jobs.from_flat`, the command line's reader): a
+    :class:`~core.jobs.ReconstructJob`, or a :class:`~core.jobs.PhotoJob` with Source › Photo's
+    species, length and wind; ``outline`` a file's path, "auto" or a drawn polygon (named
+    :data:`DRAWN`); no output folder (the tree is built in the scene)."""
+    flat = {**panel_options(props), "video": video, "outline": outline if isinstance(outline, str) else DRAWN}
+    if is_photo(video):
+        flat.update(species=None if props.photo_species == "FORM" else props.photo_species,
                     seconds=float(props.photo_seconds), wind=float(props.photo_wind))
-    check(m)
-    return m
+    job = jobs_core.from_flat(flat, "the panel")
+    job.settings.cache_dir = cache_dir()
+    return job
 
 
 def frame_range(props) -> str:
@@ -204,16 +216,12 @@ class TREE_OT_reconstruct(jobs.JobOperator, bpy.types.Operator):
         if props.build_leaves and props.leaf_image and not os.path.isfile(bpy.path.abspath(props.leaf_image)):
             raise InputError(f"leaf image '{props.leaf_image}' does not exist; pick an image file or clear the field "
                              "for the procedural leaf")
-        flat = settings_flat(props)
-        photo = photo_motion(props) if is_photo(video) else None
-        if photo is not None:
-            if photo.species:
-                load_species_spec(photo.species)
-            flat.update(photo_species=photo.species, photo_seconds=photo.seconds, photo_wind=photo.wind)
-        self._record = provenance.panel_record(flat, video)
-        return Job(make_work(video, outline, pipeline.from_flat({k: v for k, v in flat.items()
-                                                                   if not k.startswith("photo_")}),
-                             name, self._record, photo))
+        job = panel_job(props, video, outline)
+        photo = job.motion if isinstance(job, jobs_core.PhotoJob) else None
+        if photo is not None and photo.species:
+            load_species_spec(photo.species)            # a missing or broken species file fails now
+        self._record = provenance.panel_record(jobs_core.settings_doc(job), video)
+        return Job(make_work(video, outline, job.settings, name, self._record, photo))
 
     def done(self, context, result):
         props = context.scene.tree_video

@@ -210,6 +210,11 @@ def test_export_buttons_write_the_tree_and_refuse_bad_targets(addon, tmp_path):
     assert doc["counts"]["trees"] == 1 and doc["counts"]["bones"] > 50 and doc["counts"]["tracks"] > 100
     assert {"skeleton", "lift", "motion"} <= set(doc["stages"]) and any(s.startswith("tracking") for s in doc["stages"])
     assert doc["versions"]["blender"] == bpy.app.version_string
+    # the panel's report holds a job file's options: the batch reads the same settings from them
+    from tree_from_video.core import jobs as core_jobs
+    again = core_jobs.from_flat({**doc["settings"], "video": VIDEO, "outline": OUTLINE, "out": str(tmp_path / "again")})
+    again.settings.cache_dir = reconstruct_op.cache_dir()
+    assert again.settings == reconstruct_op.settings_from(addon)
     fbx = tmp_path / "exports" / "Export_Me.fbx"
     before = fbx.stat().st_mtime_ns
     addon.export_format = "FBX"
@@ -283,8 +288,7 @@ def test_a_photo_reconstructs_a_swaying_tree(addon, tmp_path):
     fps = bpy.context.scene.render.fps / bpy.context.scene.render.fps_base
     assert (start, end) == (1, round(3 * fps) + 1)                     # 3 s at the photo's rate, both ends
     doc = provenance.kept(coll)
-    assert (doc["settings"]["photo_species"], doc["settings"]["photo_seconds"], doc["settings"]["photo_wind"]) == \
-        ("sparse", 3.0, 2.0)
+    assert (doc["settings"]["species"], doc["settings"]["seconds"], doc["settings"]["wind"]) == ("sparse", 3.0, 2.0)
     flat = str(tmp_path / "flat.png")
     cv2.imwrite(flat, np.full((300, 400, 3), 90, np.uint8))
     addon.video_path, addon.collection_name = flat, "Flat"

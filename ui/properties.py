@@ -2,8 +2,8 @@
 (``window_manager.tree_video_status``).
 
 A setting the core has a parameter for takes its default and limits from the core's dataclass
-(:data:`CORE_FIELDS`, via :func:`.ranges.ranged`); the motion solver's σ and bounds and the lift's
-candidates take their defaults from :class:`MotionParams` / :class:`LiftParams` instances."""
+(:data:`CORE_FIELDS`, via :func:`.ranges.ranged`), the motion solver's σ and bounds and the lift's
+candidates too (:class:`MotionParams`, :class:`LiftParams`)."""
 import bpy
 
 from ..core.asset.game import ENGINES, GameSettings, preset
@@ -23,8 +23,6 @@ from ..core.reconstruct.motion import MotionParams
 from ..core.reconstruct.run import ReconstructSettings
 from .ranges import ranged
 
-_M = MotionParams()
-_L = LiftParams()
 _LIBRARY_ITEMS: list = []
 
 #: panel property → (core dataclass, field) it mirrors: its default, its limits and (enums) its
@@ -38,6 +36,11 @@ CORE_FIELDS = {
     "depth_source": (Settings, "depth"),
     "fold_alpha": (ReconstructSettings, "fold_alpha"),
     "solver": (MotionParams, "solver"),
+    "sigma_track": (MotionParams, "sigma_track"),
+    "sigma_shape": (MotionParams, "sigma_shape"),
+    "max_step": (MotionParams, "max_step"),
+    "max_total": (MotionParams, "max_total"),
+    "candidates": (LiftParams, "candidates"),
     "height_m": (Settings, "height_m"),
     "twig_depth": (TwigParams, "depth"),
     "gen_twig_depth": (GrowParams, "twig_depth"),
@@ -205,7 +208,7 @@ class TreeVideoSettings(bpy.types.PropertyGroup):
         description="Where the 3D lift takes the depth a single view cannot show")
     conifer: bpy.props.BoolProperty(name="Conifer Trunk", default=False,
                                     description="Older files and presets: the same as Form › Conifer")
-    candidates: bpy.props.IntProperty(name="Depth Samples", default=_L.candidates, min=4, max=256,
+    candidates: bpy.props.IntProperty(name="Depth Samples", **_core("candidates"),
                                       description="Depths (toward or away from the camera) tried for each branch when "
                                                   "the 2D skeleton is lifted to 3D: more finds a rounder crown but takes "
                                                   "longer (paper: L candidates)")
@@ -216,18 +219,18 @@ class TreeVideoSettings(bpy.types.PropertyGroup):
         description="How the 3D motion is solved from the tracked 2D skeleton")
     show_advanced: bpy.props.BoolProperty(name="Advanced", default=False,
                                           description="Show the motion solver's σ and bounds")
-    sigma_track: bpy.props.FloatProperty(name="Track σ", default=_M.sigma_track, min=0.0005, max=0.2, precision=4,
+    sigma_track: bpy.props.FloatProperty(name="Track σ", **_core("sigma_track"), precision=4,
                                          description="How far a solved branch may stray from its tracked 2D position, as "
                                                      "a share of the tree height (0.0075 = 0.75 % of it): smaller follows "
                                                      "the video more closely, larger moves more smoothly (paper: σ_track)")
-    sigma_shape: bpy.props.FloatProperty(name="Shape σ", default=_M.sigma_shape, min=0.001, max=1.0, precision=3,
+    sigma_shape: bpy.props.FloatProperty(name="Shape σ", **_core("sigma_shape"), precision=3,
                                          subtype="ANGLE",
                                          description="How far the angle between a branch and its parent may drift from "
                                                      "frame 1's, at the trunk (wider toward the tips): smaller keeps the "
                                                      "branches stiffer (paper: σ_shape)")
-    max_step: bpy.props.FloatProperty(name="Max Step", default=_M.max_step, min=0.01, max=1.0, subtype="ANGLE",
+    max_step: bpy.props.FloatProperty(name="Max Step", **_core("max_step"), subtype="ANGLE",
                                       description="Largest turn of a branch from one frame to the next (per axis)")
-    max_total: bpy.props.FloatProperty(name="Max Total (Δ)", default=_M.max_total, min=0.05, max=3.14, subtype="ANGLE",
+    max_total: bpy.props.FloatProperty(name="Max Total (Δ)", **_core("max_total"), subtype="ANGLE",
                                        description="Largest total turn of a branch away from its frame-1 pose "
                                                    "(paper: Δ)")
     # Output

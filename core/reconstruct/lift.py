@@ -35,6 +35,7 @@ from scipy.spatial import cKDTree
 
 from ..envelope import Envelope, envelope_from_outline
 from ..outline import Outline
+from ..params import param
 from ..progress import ProgressFn, report
 from ..topology import chains, children_lists, topological_order
 from ..tree3d import image_to_plane
@@ -49,7 +50,7 @@ class LiftParams:
     """``candidates`` L offsets per push; ``attractors`` on Ω; ``sample`` draws from the posterior
     with ``seed`` instead of taking its maximum (variety); ``conifer`` keeps the leader fixed."""
 
-    candidates: int = 32
+    candidates: int = param(32, 4, 256, what="--candidates")
     attractors: int = 256
     delta_frac: float = 0.2        # δ = width / 5 …
     max_push_ratio: float = 1.5    # … and at most this times the pushed branch's length

@@ -50,11 +50,11 @@ class MotionParams:
     radians). ``solver`` is "probabilistic" (default) or "deterministic"."""
 
     solver: str = param("probabilistic", choices=SOLVERS, what="solver")
-    sigma_track: float = 0.0075         # of the tree height
-    sigma_shape: float = 0.02         # radians at level 0 …
+    sigma_track: float = param(0.0075, 0.0005, 0.2, what="--sigma-track")      # of the tree height
+    sigma_shape: float = param(0.02, 0.001, 1.0, what="--sigma-shape", unit="rad")   # at level 0 …
     sigma_shape_growth: float = 0.5   # … times (1 + growth · level)
-    max_step: float = 0.15            # δ_r: per-frame rotation bound per axis
-    max_total: float = np.pi / 4      # Δ: bound of the accumulated rotation
+    max_step: float = param(0.15, 0.01, 1.0, what="--max-step", unit="rad")   # δ_r: per-frame bound per axis
+    max_total: float = param(float(np.pi / 4), 0.05, 3.14, what="--max-total", unit="rad")  # Δ: accumulated bound
     depth_sigma: float = 0.01         # per-frame depth step of subtree nodes (share of the height):
                                       # what the camera cannot see should not swing freely
     rest_sigma: float = 0.15          # radians: weak pull of the accumulated rotation back to rest

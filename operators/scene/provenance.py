@@ -20,10 +20,10 @@ KEY = "_tree_video_report"
 SUFFIX = ".report.json"
 
 
-def panel_record(flat: dict, video: str) -> JobRecord:
-    """A running record of a panel reconstruction with the settings ``flat`` (the panel's options
-    by their flat names); its input is set by :func:`set_input` in the worker (hashing takes time)."""
-    settings = {k: v for k, v in sorted(flat.items()) if k != "cache_dir"}
+def panel_record(settings: dict, video: str) -> JobRecord:
+    """A running record of a panel reconstruction with ``settings`` (its job's,
+    :func:`core.jobs.settings_doc`: the batch options' names, so a report is a job file's options);
+    its input is set by :func:`set_input` in the worker (hashing takes time)."""
     return JobRecord(["Blender: Tree from Video › Reconstruct", video], settings, identity.settings_hash(settings),
                      __version__)
 
