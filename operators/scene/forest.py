@@ -10,7 +10,7 @@ import time
 import bpy
 
 from ...core.asset.game import GameSettings
-from ...core.generate.forest import instance_offsets
+from ...core.generate.forest import instance_offsets, shares_variants
 from ...core.loop import maybe_loop
 from .build import build_tree
 from .game import build_kwargs, keep_engine_files
@@ -41,7 +41,7 @@ class ForestBuild:
         context.scene.collection.children.link(self.coll)
         self.built: list[dict] = []
         self.variants: dict[int, tuple[dict, float, int]] = {}   # variant → (built, its first size, period)
-        self.shared = len({s.variant for s in slots}) < len(slots)
+        self.shared = shares_variants(slots)
         self.materials: dict | None = None
         self.k = 0
         self.frames = 0                                   # the longest built animation (a loop's L + 1)

@@ -27,12 +27,6 @@ INSTANCE_KEY = "_tree_from_video_instance_of"
 TRACK = "Tree from Video sway"
 
 
-def instance_of(coll) -> str | None:
-    """The name of the tree ``coll`` stands again, or None for a tree of its own."""
-    name = coll.get(INSTANCE_KEY) if coll is not None else None
-    return str(name) if name else None
-
-
 def instance_tree(built: dict, name: str, offset: int, period: int) -> dict:
     """A new collection ``name`` (made unique) standing the built tree ``built`` (the dict
     :func:`.build.build_tree` returned) again: its rig and meshes copied, sharing their data, the
@@ -90,8 +84,7 @@ def instance_tree(built: dict, name: str, offset: int, period: int) -> dict:
             bpy.data.objects.remove(ob, do_unlink=True)
         bpy.data.collections.remove(coll)
         raise
-    mesh = next((copies[o.name] for o in (built.get("mesh"),) if o is not None and o.name in copies), None)
-    leaves = next((copies[o.name] for o in (built.get("leaves"),) if o is not None and o.name in copies), None)
+    mesh, leaves = (copies.get(built[k].name) if built.get(k) is not None else None for k in ("mesh", "leaves"))
     return {**built, "collection": coll, "armature": rig, "mesh": mesh, "leaves": leaves, "action": action,
             "instance_of": src_coll.name, "timings": {}}
 
