@@ -38,6 +38,7 @@ class TreeMeta(TypedDict, total=False):
     # a reconstruction (pipeline.build_3d)
     limbs: str
     depth: dict[str, Any]
+    motion_fit: dict[str, Any]
     photo: dict[str, Any]
     solver: str
     loop: dict[str, Any]
@@ -101,6 +102,10 @@ KEYS: dict[str, Key] = {
     "depth": Key("{source, crown_scale}", ("pipeline.build_3d",),
                   "where the lift took the depth (learned or envelope) and, learned, the crown's depth over "
                   "its width the network predicted (Ω's depth scale in the lift)"),
+    "motion_fit": Key("{median, max, unmeasured, over}", ("pipeline.build_3d",),
+                       "how far the 3D motion's projection lies from the measured 2D motion (shares of the "
+                       "height: median, max over measured node-frames; the unmeasured share; measured "
+                       "node-frames past motion.REPROJECTION_BOUND)"),
     "periodic": Key("{frames, seconds}", ("growth.grow_tree",),
                     "a generated tree's sway repeats after these frames (whole-period frequencies): "
                     "a loop by construction, its last frame the first"),

@@ -29,7 +29,7 @@ from .reconstruct.branch_fit import fit_to_video, measure_branches, tree_map
 from .reconstruct.foreground import foreground
 from .reconstruct.learned_depth import DEPTH_SOURCES, shared_net
 from .reconstruct.lift import LiftParams, lift
-from .reconstruct.motion import MotionParams, solve_motion
+from .reconstruct.motion import MotionParams, motion_fit, solve_motion
 from .reconstruct.run import (
     SKELETON_KINDS,
     STAGE_COSTS_2D,
@@ -229,6 +229,7 @@ def build_3d(res: Result, s: Settings | None = None, name: str = "Tree",
     targets = image_to_plane(sk.nodes2d.astype(float), base)[..., [0, 2]]
     mo = solve_motion(lifted.nodes, sk.parents, sk.level, targets, s.motion, parts["motion"], sk.confidence)
     nodes, times = mo.nodes, uneven_times(sk.times, sk.fps)
+    followed = None if photo is not None else motion_fit(mo.nodes, sk.parents, targets, sk.confidence).summary()
     if photo is not None:                         # a photo: its species' sway on the traced rest pose
         model = species_for(photo, res.form)
         nodes, times = photo_sway(model, sk.parents, mo.nodes[0], photo, sk.fps), None
@@ -247,6 +248,7 @@ def build_3d(res: Result, s: Settings | None = None, name: str = "Tree",
                           "wind": float(photo.wind), "seed": int(photo.seed)}} if photo is not None else {}),
             "depth": {"source": "learned" if depth is not None else "envelope",
                       "crown_scale": round(float(lifted.envelope.depth_scale), 4)},
+            **({"motion_fit": followed} if followed is not None else {}),
             "base_px": [float(base[0]), float(base[1])],          # trunk base in frame 1 (x, y) px
             "video_size": [int(res.outline.mask.shape[1]), int(res.outline.mask.shape[0])]}
     tree = Tree3D(sk.parents.copy(), (nodes * scale).astype(np.float32), radius, sk.level.copy(),

@@ -28,13 +28,16 @@ def solved(runs):
             m = motion.solve_motion(L.nodes, sk.parents, sk.level, tgt, motion.MotionParams(solver=solver))
             entry[key] = motion_scores(m.nodes.astype(np.float64), sk.parents, tgt, base, runs[v]["truth"])
             entry[key + "_motion"] = m
+            entry[key + "_fit"] = motion.motion_fit(m.nodes, sk.parents, tgt, sk.confidence).summary()
         out[v] = entry
-    lines = [f"{'variant':<9}{'solver':<7}{'reproj med':>11}{'max':>7}{'dα95°':>7}{'truth':>7}{'dαmax°':>8}"
-             f"{'truth':>7}{'amp':>6}{'corr':>6}{'2D':>6}"]
+    lines = [f"{'variant':<9}{'solver':<7}{'reproj med':>11}{'max':>7}{'measured':>9}{'unmeas':>7}"
+             f"{'dα95°':>7}{'truth':>7}{'dαmax°':>8}{'truth':>7}{'amp':>6}{'corr':>6}{'2D':>6}"]
     for v, e in out.items():
         for key in ("prob", "det"):
             s = e[key]
+            f = e[key + "_fit"]
             lines.append(f"{v:<9}{key:<7}{100 * s['reproj_median']:10.2f}%{100 * s['reproj_max']:6.2f}%"
+                         f"{100 * f['max']:8.2f}%{100 * f['unmeasured']:6.1f}%"
                          f"{s['angle95']:7.1f}{s['true_angle95']:7.1f}{s['angle_max']:8.1f}{s['true_angle_max']:7.1f}"
                          f"{s['tip_amplitude_ratio']:6.2f}{s['tip_corr']:6.2f}{s['tip_corr_2d']:6.2f}")
     report.add("3D motion vs truth (tests/test_motion.py)", lines)
@@ -43,18 +46,24 @@ def solved(runs):
 
 @pytest.mark.parametrize("variant", BAR_VARIANTS + ("dense",))
 def test_reprojection_and_lengths(solved, variant):
-    """Reprojection ≤ 1 % of the height (median) and ≤ 6 % (worst node, worst frame). sparse:
-    ≤ 9 % (measured 7.8 %): a thin limb traced from frame 1 has no tracks of its own, its two top
-    nodes move with a neighbouring tuft's tracks in 2D and their edge stretches from 10 to 22 px,
-    which a bone that keeps its length (checked here) cannot follow."""
-    s = solved[variant]["prob"]
-    assert s["reproj_median"] <= 0.01 and s["reproj_max"] <= (0.09 if variant == "sparse" else 0.06), s
+    """The 3D motion keeps to the measured 2D motion (issue 35): at every measured node-frame its
+    projection lies within 3 % of the height of the tracked position (it was 6 %, and 9 % on
+    sparse, while a chain node's whole displacement came from its chain's ends); at most 5 % of the
+    node-frames unmeasured (low confidence, or an edge stretched past its bone); median ≤ 1 %;
+    lengths exact."""
+    s, fit = solved[variant]["prob"], solved[variant]["prob_fit"]
+    assert fit["max"] <= motion.REPROJECTION_BOUND and fit["over"] == 0, fit
+    assert fit["unmeasured"] <= 0.05 and s["reproj_median"] <= 0.01, (fit, s)
     assert s["length_change"] <= 0.01, s
 
 
 @pytest.mark.parametrize("variant", BAR_VARIANTS)
 def test_branch_angles_stay_close_to_the_truth(solved, variant):
+    """Branches bend about as much as the true ones (95th percentile of the change of branch
+    angles at least 0.6 of the truth's; 0.35–0.68 with the shape term's σ at 1.1°) and not more
+    than 1.5×; the conifer at least 0.4 (its leader is kept straight)."""
     s = solved[variant]["prob"]
+    assert s["angle95"] >= (0.4 if variant == "conifer" else 0.6) * s["true_angle95"], s
     assert s["angle95"] <= 1.5 * s["true_angle95"], s
     assert s["angle_max"] <= min(2 * s["true_angle_max"], 30.0), s
 
@@ -117,8 +126,14 @@ def test_chain_targets_follow_their_ends_by_arc_length():
     t0 = np.array([[0, 0], [0, 1], [0, 2], [0, 3]], float)
     t1 = t0 + np.array([[0, 0], [5, 5], [-5, 5], [3, 0]])   # chain nodes jitter, tip moves 3 in x
     out = motion.smooth_chain_targets(np.stack([t0, t1]), parents)
-    assert out[1, 1] == pytest.approx([1, 1]) and out[1, 2] == pytest.approx([2, 2])
-    assert out[1, 3] == pytest.approx([3, 3]) and out[1, 0] == pytest.approx([0, 0])
+    # along the interpolated chain (0,0)→(1,1)→(2,2)→(3,3) the nodes sit at (1, 1) and (2, 2); across
+    # it, normal n = (−1, 1)/√2, each keeps its own displacement: node 1 measured (5, 6), (4, 5)·n =
+    # 1/√2 → (1, 1) + (−0.5, 0.5); node 2 measured (−5, 7), (−7, 5)·n = 12/√2 → (2, 2) + (−6, 6)
+    assert out[1, 1] == pytest.approx([0.5, 1.5]) and out[1, 2] == pytest.approx([-4, 8])
+    straight = t0 + np.array([[0, 0], [0, 5], [0, -1], [0, 3]])     # jitter only along the chain
+    out = motion.smooth_chain_targets(np.stack([t0, straight]), parents)
+    assert out[1, 1] == pytest.approx([0, 2]) and out[1, 2] == pytest.approx([0, 4])
+    assert out[1, 3] == pytest.approx([0, 6]) and out[1, 0] == pytest.approx([0, 0])   # the ends are their own
 
 
 def _fork():
