@@ -1,7 +1,9 @@
 """The lift with learned depth against the lift with the outline's envelope (issue 35), on the
 samples (dev seeds) and on held-out seeds of every variant: the symmetric 3D chamfer of the
 frame-1 skeleton against the true tree over the tree height (best of both depth signs), and over
-a flat lift's (the true tree flattened to depth 0): below 1 beats flat.
+a flat lift's (the true tree flattened to depth 0): below 1 beats flat. The traced skeleton laid
+flat (depth 0) is printed beside it: its ratio is what the 2D trace alone costs, and a lift over it
+("/ own flat") is what the lift's depth gains or loses on the same trace.
 
 Each clip is generated with 24 frames (the lift reads frame 1 and the traced skeleton; the motion
 is not part of it), traced once, then lifted both ways.
@@ -90,17 +92,27 @@ def main() -> None:
                     L = lift(sk, res.outline, pr, **kw)
                     r = lift_scores(L.nodes, sk.parents, sk.nodes2d[0, 0], truth)
                     out[name] = r["chamfer"] / r["flat_truth"]
-                rows.append((v, kind, seed, out["envelope"], out["learned"]))
+                flat = L.nodes.copy()
+                flat[:, 1] = 0.0
+                r = lift_scores(flat, sk.parents, sk.nodes2d[0, 0], truth)
+                out["own flat"] = r["chamfer"] / r["flat_truth"]
+                rows.append((v, kind, seed, out["envelope"], out["learned"], out["own flat"]))
                 print(f"{v:<10}{kind:<9}{seed:>4}  " + "  ".join(f"{k} {x:.2f}" for k, x in out.items()), flush=True)
-    print("\n| variant | seeds | 3D chamfer / flat's: envelope | learned |")
-    print("|---|---|---|---|")
+    print("\n| variant | seeds | 3D chamfer / flat truth's: envelope | learned | own trace flat "
+          "| learned / own flat (worst) |")
+    print("|---|---|---|---|---|---|")
     for kind in dict.fromkeys(r[1] for r in rows):
         sel = [r for r in rows if r[1] == kind]
         for v in dict.fromkeys(r[0] for r in sel):
             e = [r[3] for r in sel if r[0] == v]
             ln = [r[4] for r in sel if r[0] == v]
-            print(f"| {v} | {kind} | {np.mean(e):.2f} | {np.mean(ln):.2f} |")
-        print(f"| **mean** | {kind} | **{np.mean([r[3] for r in sel]):.2f}** | **{np.mean([r[4] for r in sel]):.2f}** |")
+            fl = [r[5] for r in sel if r[0] == v]
+            own = np.array(ln) / np.array(fl)
+            print(f"| {v} | {kind} | {np.mean(e):.2f} | {np.mean(ln):.2f} | {np.mean(fl):.2f} "
+                  f"| {np.mean(own):.2f} ({own.max():.2f}) |")
+        own = np.array([r[4] / r[5] for r in sel])
+        print(f"| **mean** | {kind} | **{np.mean([r[3] for r in sel]):.2f}** | **{np.mean([r[4] for r in sel]):.2f}** "
+              f"| {np.mean([r[5] for r in sel]):.2f} | {own.mean():.2f} ({own.max():.2f}) |")
 
 
 if __name__ == "__main__":
