@@ -42,7 +42,7 @@ from .core.generate.photo import check_photo
 from .core.params import spec
 from .core.reconstruct import node_motion, overlay, skeleton_io
 from .core.reconstruct.lift import LiftParams
-from .core.reconstruct.motion import MotionParams, fit_warning
+from .core.reconstruct.motion import MotionParams
 from .core.reconstruct.run import ReconstructSettings
 from .core.tree3d import load_tree, save_tree
 
@@ -521,8 +521,7 @@ def _write_tree(run: Run, res, tree, out: str, outputs, cb) -> None:
     job = run.job
     assert isinstance(job, jobs.ReconstructJob)
     os.makedirs(out, exist_ok=True)
-    stray = fit_warning(tree.meta["motion_fit"]) if "motion_fit" in tree.meta else None
-    for w in [*res.warnings, *([stray] if stray else [])]:
+    for w in pipeline.tree_warnings(res, tree):
         sys.stderr.write(f"warning: {w}\n")
         run.record.warn(w)
     run.record.add(trees=1, tracks=res.tracks.n_tracks, nodes=tree.n_nodes,

@@ -29,7 +29,7 @@ from .reconstruct.branch_fit import fit_to_video, measure_branches, tree_map
 from .reconstruct.foreground import foreground
 from .reconstruct.learned_depth import DEPTH_SOURCES, shared_net
 from .reconstruct.lift import LiftParams, lift
-from .reconstruct.motion import MotionParams, motion_fit, solve_motion
+from .reconstruct.motion import MotionParams, fit_warning, motion_fit, solve_motion
 from .reconstruct.run import (
     SKELETON_KINDS,
     STAGE_COSTS_2D,
@@ -192,6 +192,14 @@ def share_2d(n_frames: int) -> float:
     t2 = sum(expected_seconds(STAGE_COSTS_2D, n_frames).values())
     t3 = sum(expected_seconds(STAGE_COSTS_3D, n_frames).values())
     return t2 / (t2 + t3)
+
+
+def tree_warnings(res: Result, tree: Tree3D) -> list[str]:
+    """The run's warnings, and the 3D motion's when it strays from the measured 2D motion
+    (``meta["motion_fit"]``, :func:`.reconstruct.motion.fit_warning`): what the batch run and the
+    panel report for a reconstructed tree."""
+    stray = fit_warning(tree.meta["motion_fit"]) if "motion_fit" in tree.meta else None
+    return [*res.warnings, *([stray] if stray else [])]
 
 
 def build_3d(res: Result, s: Settings | None = None, name: str = "Tree",

@@ -262,7 +262,7 @@ class TREE_OT_reconstruct(jobs.JobOperator, bpy.types.Operator):
         props.leaf_polygons = built["leaf_polygons"]
         photo = is_photo(res.info.path)                 # its motion is the species', not measured
         props.motion_measured = -1.0 if photo else measured_share(res)
-        for w in res.warnings:
+        for w in pipeline.tree_warnings(res, tree):
             self.report({"WARNING"}, w)
         leaves = f", {built['leaf_polygons']:,} leaf polygons" if built["leaf_polygons"] else ""
         self.report({"INFO"}, f"{len(built['armature'].data.bones)} bones × {tree.n_frames} frames in "

@@ -40,6 +40,7 @@ import numpy as np
 from ..params import param
 from ..progress import ProgressFn, report
 from ..topology import chains, node_depths
+from .node_motion import LOW_CONFIDENCE
 from .rotation_solve import PENALTY, FrameTerms, TreeSystem, branch_angles, gauss_newton_step, turn
 
 SOLVERS = ("probabilistic", "deterministic")
@@ -183,7 +184,6 @@ def motion_fit(nodes: np.ndarray, parents: np.ndarray, targets: np.ndarray,
     """:class:`MotionFit` of a solved motion ``nodes (F, N, 3)`` px (plane frame) against its
     measured targets ``(F, N, 2)`` (x, z) px and their ``confidence (F, N)`` (None: all measured);
     the height is the rest pose's."""
-    from .node_motion import LOW_CONFIDENCE
     X = np.asarray(nodes, np.float64)
     T = np.asarray(targets, np.float64)
     height = max(float(np.ptp(X[0, :, 2])), 1.0)
