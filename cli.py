@@ -39,6 +39,7 @@ from .core.formats import FORMATS
 from .core.generate import batch as gb
 from .core.generate import species
 from .core.generate.photo import check_photo
+from .core.generate.variations import VariationParams
 from .core.params import spec
 from .core.reconstruct import node_motion, overlay, skeleton_io
 from .core.reconstruct.lift import LiftParams
@@ -252,6 +253,15 @@ def build_parser() -> argparse.ArgumentParser:
                    help="frames of each generated animation (default: the species' source clip)")
     g.add_argument("--seconds", type=float,
                    help="length of each generated animation in seconds (instead of --frames-out)")
+    V = VariationParams
+    v = p.add_argument_group("tree variations (--variations; seed 000)")
+    v.add_argument("--variations", type=int, metavar="N",
+                   help=f"write N new RGBA tree images ({_range(V, 'count')}) made from --exemplars: their contours "
+                        "combined, their colour carried into the new contour (DIR/variation_000.png ..., "
+                        "DIR/variations.json); --seed draws them")
+    v.add_argument("--exemplars", nargs="+", action="extend", metavar="IMAGE",
+                   help="RGBA pictures of trees (transparent around the tree, e.g. a billboard) the variations "
+                        "are made from; one is given its mirror image as a second")
     return p
 
 
@@ -405,6 +415,25 @@ def _generate_only(run: Run) -> int:
     _begin(run)
     _make_bark(run, photos)
     return _run_generation(run, plan, outputs, (job.curliness, job.bark))
+
+
+def _variations(run: Run) -> int:
+    """A :class:`~.core.jobs.VariationsJob`: the exemplars read (one line for an unfit one), then
+    the variations written (:mod:`.core.generate.variations`)."""
+    from .core.fileio import write_files
+    from .core.generate import variations as gv
+    from .core.generate.exemplars import read_exemplar
+    job = run.job
+    assert isinstance(job, jobs.VariationsJob)
+    exemplars = [read_exemplar(path, job.params.size) for path in job.exemplars]
+    _check_out(job.out, gv.planned_files(job.params.count), run.force)
+    _begin(run)
+    made = gv.make_variations(exemplars, job.params, run.record.timed(_progress_printer(run.quiet)))
+    names = write_files(job.out, gv.variation_files(made, job.params, list(job.exemplars)))
+    run.record.add(variations=len(made))
+    sys.stderr.write(f"done: {len(made)} variation(s) of {len(exemplars)} exemplar(s) -> {job.out} "
+                     f"({os.path.basename(names[0])} ... {gv.RECORD})\n")
+    return 0
 
 
 def _generate_from_tree(run: Run, plan, tree, name, outputs) -> int:
@@ -585,8 +614,9 @@ def record(job: jobs.Job | dict, argv: list[str]) -> JobRecord:
         settings = jobs.settings_doc(job)
         video = job.tree if isinstance(job, jobs.ExportJob) else getattr(job, "video", None)
         outline = getattr(job, "outline", None)
-    return JobRecord(list(argv), settings, identity.settings_hash(settings), __version__,
-                     input=identity.input_identity(video, outline))
+    ident = (identity.files_identity(job.exemplars, "exemplars") if isinstance(job, jobs.VariationsJob)
+             else identity.input_identity(video, outline))
+    return JobRecord(list(argv), settings, identity.settings_hash(settings), __version__, input=ident)
 
 
 class Tee:
@@ -635,6 +665,8 @@ def run_job(run: Run) -> int:
     """Run the job of ``run`` (its record set) by its kind; the one runner of the batch, a job
     file, the farm's tasks and :func:`.api.run_job`."""
     job = run.job
+    if isinstance(job, jobs.VariationsJob):
+        return _variations(run)
     if isinstance(job, jobs.ExportJob):
         return _exports_only(run)
     if isinstance(job, jobs.GenerateJob):

@@ -9,7 +9,8 @@ detail/       a ``Tree3D`` → the same tree with twigs copied from its forks, l
               albedo, and its branch mesh (tubes, bark, curl).
 generate/     reconstructed ``Tree3D``s → a species (``SpeciesModel``: Dirichlets of shape and
               motion) → new ``Tree3D``s grown in any envelope, swaying by wind or audio; forests;
-              and a crown's limbs grown where the video shows none (``limbs``).
+              a crown's limbs grown where the video shows none (``limbs``); and new RGBA tree
+              pictures from RGBA exemplars (``variations``, seed 000).
 asset/        a ``Tree3D`` → what every writer copies (``TreeAsset``): the rig (bones, rest pose,
               the motion's reduced keys; a bone budget's re-fitted rig), the branch and leaf meshes
               and their levels of detail, the look, each node's role; and what game engines read
@@ -29,7 +30,7 @@ formats' registry every writer and front end reads (``formats``), errors, progre
 and background jobs. ``pipeline`` strings the stages end to end: ``run`` (the 2D stages) and
 ``build_3d`` (3D lift, motion, branch widths, twigs, leaves); between them ``with_limbs`` grows
 the limbs of a crown that shows no bark. ``jobs`` describes a whole run as a typed job
-(``ReconstructJob``, ``PhotoJob``, ``GenerateJob``, ``ExportJob``: inputs, settings, outputs asked
+(``ReconstructJob``, ``PhotoJob``, ``GenerateJob``, ``ExportJob``, ``VariationsJob``: inputs, settings, outputs asked
 for), built from the batch options by name by one ``from_flat`` that the batch, a job file, the
 farm and the API use.
 

@@ -1,12 +1,13 @@
 """A run as a typed, serializable job: what it reads, its settings and what it writes (issue 34).
 
-Four kinds, each a dataclass:
+Five kinds, each a dataclass:
 
 * :class:`ReconstructJob` — a video and its outline → the moving skeleton, the 3D tree and the
   files asked for (with ``generate`` also new trees of the species fitted from it);
 * :class:`PhotoJob` — a photo and its outline → a tree that sways as its species
   (:mod:`.generate.photo`);
 * :class:`GenerateJob` — new trees of a species, without a video;
+* :class:`VariationsJob` — new RGBA tree images from RGBA exemplars (:mod:`.generate.variations`);
 * :class:`ExportJob` — the Blender outputs of a tree an earlier job saved (the exports step
   alone: a farm runs the others on any worker and this one on Blender workers).
 
@@ -30,6 +31,7 @@ from .errors import InputError
 from .formats import FORMATS
 from .generate.batch import GenerateRequest, check_request
 from .generate.photo import PhotoMotion, is_photo
+from .generate.variations import VariationParams
 from .loop import LoopSettings
 from .params import check, spec
 from .pipeline import Settings, check_settings
@@ -51,6 +53,7 @@ OPTIONS: dict[str, type] = {
     "bark_image": list, "moss": float, "lichen": float, "bark_scale": float,
     "fold_alpha": float, "candidates": int, "sigma_track": float, "sigma_shape": float, "max_step": float,
     "max_total": float, "flutter_gain": float, "max_leaf_clusters": int,
+    "variations": int, "exemplars": list,
 }
 #: the options that say where a job reads and writes (not its settings: not in its settings hash)
 PLACES = ("video", "outline", "out", "tree")
@@ -149,7 +152,35 @@ class ExportJob:
     outputs: JobOutputs
 
 
-Job = Union[ReconstructJob, PhotoJob, GenerateJob, ExportJob]
+@dataclass
+class VariationsJob:
+    """``params.count`` new RGBA tree images made from the RGBA pictures ``exemplars``, written to
+    ``out`` (``variation_000.png``…, ``variations.json``)."""
+
+    kind: ClassVar[str] = "variations"
+    exemplars: tuple[str, ...]
+    out: str
+    params: VariationParams
+    outputs: JobOutputs = field(default_factory=JobOutputs)
+
+
+Job = Union[ReconstructJob, PhotoJob, GenerateJob, ExportJob, VariationsJob]
+
+
+def variations_of(o: dict) -> VariationsJob:
+    """The :class:`VariationsJob` of the options ``o`` (``variations`` given): exemplars needed, and
+    nothing of a tree's run beside them."""
+    exemplars = tuple(o.get("exemplars") or ())
+    if not exemplars:
+        raise InputError("--variations N makes new trees from pictures of trees; add --exemplars A.png B.png "
+                         "(RGBA, transparent around the tree)")
+    for opt in ("video", "tree", "generate", "outline"):
+        if o.get(opt) is not None:
+            name = "VIDEO" if opt == "video" else "--" + opt
+            raise InputError(f"--variations makes tree images from --exemplars; drop {name} (run it as a job of its own)")
+    p = VariationParams(count=o["variations"], seed=o.get("seed", VariationParams().seed))
+    check(p)
+    return VariationsJob(exemplars, o.get("out", ""), p)
 
 
 def check_types(flat: dict, where: str = "the job") -> dict:
@@ -253,6 +284,10 @@ def from_flat(flat: dict, where: str = "the job") -> Job:
     types, values and combinations are one-line :class:`InputError`\\ s (``where`` names the file in
     them). ``out`` may be empty (the panel builds in its scene)."""
     o = check_types(flat, where)
+    if o.get("variations") is not None:
+        return variations_of(o)
+    if o.get("exemplars"):
+        raise InputError("--exemplars are the pictures --variations N is made from; add --variations N")
     outputs = outputs_from(o)
     out = o.get("out", "")
     if o.get("tree"):
@@ -326,6 +361,9 @@ def to_flat(job: Job) -> dict:
     """The batch options of ``job`` by name (None where the default holds): what :func:`from_flat`
     reads back into the same job, what a job file holds and what the report records."""
     flat: dict[str, Any] = {"out": job.out or None}
+    if isinstance(job, VariationsJob):
+        flat.update(variations=job.params.count, exemplars=list(job.exemplars), seed=job.params.seed)
+        return flat
     flat.update(_outputs_flat(job.outputs))
     if isinstance(job, ExportJob):
         flat["tree"] = job.tree

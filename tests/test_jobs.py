@@ -48,6 +48,8 @@ def test_the_options_are_the_batch_parsers():
     (["--tree", "t/tree3d.npz", "--out", "d", "--engine", "godot"], jobs.ExportJob),
     (["v.mp4", "--outline", "o.json", "--out", "d", "--gltf", "--bark-image", "a.jpg", "--bark-image", "b.jpg",
       "--moss", "0", "--bark-scale", "30"], jobs.ReconstructJob),
+    (["--variations", "5", "--exemplars", "a.png", "b.png", "--exemplars", "c.png", "--seed", "3", "--out", "d"],
+     jobs.VariationsJob),
 ])
 def test_each_kind_from_the_line_and_back(argv, kind):
     job = jobs.from_flat(_flat(argv))

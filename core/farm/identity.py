@@ -38,6 +38,16 @@ def input_identity(video: str | None, outline: str | None) -> dict | None:
     return doc
 
 
+def files_identity(paths, key: str) -> dict | None:
+    """``{key: [{"file", "bytes", "sha256"}...], "sha256"}`` of a job's input files that are not a video (the
+    exemplars of variations); None when one is missing (the run names it)."""
+    if not paths or not all(os.path.isfile(p) for p in paths):
+        return None
+    files = [{"file": os.path.abspath(p), "bytes": os.path.getsize(p), "sha256": file_sha256(p)} for p in paths]
+    joined = hashlib.sha256("".join(f["sha256"] for f in files).encode()).hexdigest()
+    return {key: files, "sha256": joined}           # "sha256" of them all: what decide() compares
+
+
 @dataclass
 class Decision:
     """What a run does with its folder: ``action`` is ``run`` (nothing of ours there), ``skip`` (a
