@@ -206,6 +206,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="a hemi-octahedral impostor rendered in Blender (impostor_albedo.png, impostor_normal.png: "
                         "8x8 views; impostor.json: layout, view directions, bounds) and a crossed-billboard card "
                         "<tree>_LOD<k> as the last level of detail")
+    p.add_argument("--billboard", type=int, metavar="PX",
+                   help="the tree's front at rest rendered in Blender, PX pixels on its longer side: billboard.png "
+                        "(RGBA, alpha the silhouette), billboard_normal.png (glTF-axes normals), billboard.json "
+                        "(scale, where the tree stands); --generate writes one per tree; usable as --exemplars")
     p.add_argument("--bone-texture", action="store_true", default=None,
                    help="write the motion as a bone-animation texture beside the exports (bone_anim.exr: a row "
                         "a frame, each bone's head displacement and rotation; bone_anim.json: layout, bones, "
@@ -397,7 +401,7 @@ def _bark_files(job) -> list[str]:
 
 def _blender_step(job) -> object | None:
     """The Blender writers when the job asks for Blender outputs (checked against this Blender), else None."""
-    if not job.outputs.formats:
+    if not job.outputs.blender:
         return None
     outputs = _blender_outputs()
     outputs.check_wanted(job.outputs.wanted)
@@ -519,7 +523,7 @@ def _write_blender(run: Run, outputs, tree, out: str, report=None) -> dict:
     o = run.job.outputs
     return outputs.write_outputs(tree, out, o.wanted, overwrite=run.force, leaf_image=o.leaf_image,
                                  report=report or (lambda m: sys.stderr.write(m + "\n")), loop_s=o.game.loop_s,
-                                 game=o.game, stats=run.record.counts, bark_maps=run.bark)
+                                 game=o.game, stats=run.record.counts, bark_maps=run.bark, billboard_px=o.billboard)
 
 
 def _read_bark(run: Run) -> list:

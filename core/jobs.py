@@ -25,6 +25,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any, ClassVar, Union
 
+from .asset.billboard import BILLBOARD_PX
+from .asset.billboard import FILES as BILLBOARD_FILES
 from .asset.game import GameSettings, preset
 from .detail.bark_photo import BarkPhotoParams
 from .errors import InputError
@@ -53,7 +55,7 @@ OPTIONS: dict[str, type] = {
     "bark_image": list, "moss": float, "lichen": float, "bark_scale": float,
     "fold_alpha": float, "candidates": int, "sigma_track": float, "sigma_shape": float, "max_step": float,
     "max_total": float, "flutter_gain": float, "max_leaf_clusters": int,
-    "variations": int, "exemplars": list,
+    "variations": int, "exemplars": list, "billboard": int,
 }
 #: the options that say where a job reads and writes (not its settings: not in its settings hash)
 PLACES = ("video", "outline", "out", "tree")
@@ -85,7 +87,8 @@ class JobOutputs:
     with (the engine preset applied; its ``loop_s`` the loop they carry), ``leaf_image`` (None: the
     procedural leaf), ``npz`` the arrays of ``result.npz``, ``overlay_video`` ``overlay.mp4``;
     ``bark_images`` photos of bark the bark is made from (none: procedural) with ``bark`` their
-    :class:`~.detail.bark_photo.BarkPhotoParams` (moss, lichen, the tile's scale)."""
+    :class:`~.detail.bark_photo.BarkPhotoParams` (moss, lichen, the tile's scale); ``billboard`` the
+    billboard's pixels on its longer side (0: none; :mod:`.asset.billboard`, rendered in Blender)."""
 
     formats: tuple[str, ...] = ()
     game: GameSettings = field(default_factory=GameSettings)
@@ -94,6 +97,12 @@ class JobOutputs:
     overlay_video: bool = True
     bark_images: tuple[str, ...] = ()
     bark: BarkPhotoParams = field(default_factory=BarkPhotoParams)
+    billboard: int = 0
+
+    @property
+    def blender(self) -> bool:
+        """Whether the job needs Blender (an export, or a render like the billboard)."""
+        return bool(self.formats) or self.billboard > 0
 
     @property
     def wanted(self) -> dict[str, bool]:
@@ -102,8 +111,8 @@ class JobOutputs:
 
     @property
     def files(self) -> list[str]:
-        """The Blender outputs' file names, in the registry's order."""
-        return [f.file for f in FORMATS if f.flag in self.formats]
+        """The Blender outputs' file names, in the registry's order, and the billboard's."""
+        return [f.file for f in FORMATS if f.flag in self.formats] + (list(BILLBOARD_FILES) if self.billboard else [])
 
 
 @dataclass
@@ -250,7 +259,12 @@ def outputs_from(o: dict) -> JobOutputs:
     bark = BarkPhotoParams(moss=o.get("moss", d.moss), lichen=o.get("lichen", d.lichen),
                            scale_cm=o.get("bark_scale", d.scale_cm))
     check(bark)
-    return JobOutputs(formats, game, o.get("leaf_image"), bool(o.get("npz")), not o.get("no_video"), photos, bark)
+    billboard = o.get("billboard") or 0
+    if billboard and not BILLBOARD_PX[0] <= billboard <= BILLBOARD_PX[1]:
+        raise InputError(f"--billboard {billboard}: give the billboard's pixels on its longer side, "
+                         f"{BILLBOARD_PX[0]}..{BILLBOARD_PX[1]}, e.g. 512")
+    return JobOutputs(formats, game, o.get("leaf_image"), bool(o.get("npz")), not o.get("no_video"), photos, bark,
+                      int(billboard))
 
 
 def settings_of(o: dict) -> Settings:
@@ -293,8 +307,8 @@ def from_flat(flat: dict, where: str = "the job") -> Job:
     if o.get("tree"):
         if o.get("video") or o.get("outline") or o.get("generate") is not None:
             raise InputError("--tree builds the outputs of a saved tree; drop the VIDEO, --outline and --generate")
-        if not outputs.formats:
-            raise InputError(f"--tree builds the Blender outputs; add one of {FORMAT_FLAGS}")
+        if not outputs.blender:
+            raise InputError(f"--tree builds the Blender outputs; add one of {FORMAT_FLAGS} or --billboard PX")
         return ExportJob(o["tree"], out, outputs)
     video = o.get("video")
     if video is None:
@@ -329,7 +343,7 @@ def _outputs_flat(out: JobOutputs) -> dict:
     flat.update(engine=g.engine or None, bones=g.bones or None, lods=g.lods, loop=g.loop_s,
                 pivot_painter=g.pivot_painter, bone_texture=g.bone_texture, collision=g.collision,
                 viewer=g.viewer, impostor=g.impostor, leaf_image=out.leaf_image, npz=out.npz,
-                no_video=not out.overlay_video)
+                no_video=not out.overlay_video, billboard=out.billboard or None)
     if out.bark_images:
         flat.update(bark_image=list(out.bark_images), moss=float(out.bark.moss), lichen=float(out.bark.lichen),
                     bark_scale=float(out.bark.scale_cm))

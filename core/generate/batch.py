@@ -179,7 +179,8 @@ def generate_trees(model, species_label: str, envelope, envelope_label: str, req
         os.makedirs(d, exist_ok=True)
         save_tree(os.path.join(d, TREE_FILE), tree)
         written = write_files(tree, d) if write_files is not None else {}
-        files = [os.path.join(folder, TREE_FILE)] + [os.path.relpath(p, out_dir) for p in written.values()]
+        paths = [q for v in written.values() for q in (v if isinstance(v, (list, tuple)) else [v])]   # engine files: lists
+        files = [os.path.join(folder, TREE_FILE)] + [os.path.relpath(q, out_dir) for q in paths]
         entries.append({"folder": folder, "seed": seed, "species": species_label, "envelope": envelope_label,
                         "bones": int(tree.n_nodes - 1), "leaf_clusters": int(tree.leaves.count if tree.leaves else 0),
                         "frames": int(tree.n_frames), "stopped": tree.meta.get("stopped"),

@@ -1,12 +1,13 @@
-"""The impostor rendered in Blender (issue 33, ``--impostor``; the layout is the core's,
-:mod:`core.asset.impostor`): every cell of the hemi-octahedral atlas a Workbench render of the tree
-at rest (LOD0) from its direction — albedo (the materials' texture colours, flat light, alpha the
-coverage) and normals (each vertex's rest normal in glTF axes as a colour attribute, raw view
-transform) — and the crossed-billboard card mesh ``<tree>_LOD<k>`` that shows two of its cells, the
-last level of detail.
+"""The impostor and the billboard rendered in Blender (issue 33, ``--impostor``; issue 36,
+``--billboard``; their layouts are the core's, :mod:`core.asset.impostor` and
+:mod:`core.asset.billboard`): every cell of the hemi-octahedral atlas, or the billboard's front
+view, a Workbench render of the tree at rest — albedo (the materials' texture colours, flat light,
+alpha the coverage) and normals (each vertex's rest normal in glTF axes as a colour attribute, raw
+view transform) — and the crossed-billboard card mesh ``<tree>_LOD<k>`` that shows two of the
+atlas's cells, the last level of detail.
 
-Rendered in a scene of its own (the tree's objects linked, the armature in its rest position), so
-the user's scene, frame and render settings are untouched.
+Rendered in a scene of its own (:class:`ViewRenderer`: the tree's objects linked, the armature in
+its rest position), so the user's scene, frame and render settings are untouched.
 """
 from __future__ import annotations
 
@@ -34,85 +35,123 @@ def _render(scene, path: str) -> np.ndarray:
     return img[..., [2, 1, 0, 3]]
 
 
-def render_atlas(rig, meshes, layout: ImpostorLayout) -> tuple[np.ndarray, np.ndarray]:
-    """``(albedo, normal)`` atlases ``(S, S, 4)`` uint8 RGBA (row 0 the top) of ``meshes`` (the
-    tree's LOD0 objects) on ``rig`` at rest."""
-    scene = bpy.data.scenes.new(".Tree from Video impostor")
-    cam = bpy.data.objects.new(".impostor camera", bpy.data.cameras.new(".impostor camera"))
-    folder = tempfile.mkdtemp(prefix="tree_video_impostor_")
-    old_pose = rig.data.pose_position
-    added = []
-    try:
-        for ob in [rig, *meshes]:
-            scene.collection.objects.link(ob)
-        scene.collection.objects.link(cam)
-        scene.camera = cam
-        cam.data.type = "ORTHO"
-        cam.data.ortho_scale = 2.0 * layout.radius
-        cam.data.clip_start, cam.data.clip_end = 0.001, 8.0 * layout.radius + 1.0
-        r = scene.render
-        r.engine = "BLENDER_WORKBENCH"
-        r.film_transparent = True
-        r.resolution_x = r.resolution_y = layout.cell
-        r.resolution_percentage = 100
-        r.image_settings.file_format = "PNG"
-        r.image_settings.color_mode = "RGBA"
-        r.image_settings.color_depth = "8"
-        scene.display.shading.light = "FLAT"
-        rig.data.pose_position = "REST"
-        for ob in meshes:                             # rest normals in glTF axes, as colours
-            me = ob.data
-            n = np.empty(3 * len(me.vertices), np.float32)
-            me.vertices.foreach_get("normal", n)
-            attr = me.color_attributes.new(NORMAL_ATTR, "FLOAT_COLOR", "POINT")
-            added.append((me, attr.name, me.color_attributes.active_color_name))
-            col = np.ones((len(me.vertices), 4), np.float32)
-            col[:, :3] = 0.5 * (n.reshape(-1, 3) @ TO_GLTF.T + 1.0)
-            attr.data.foreach_set("color", col.ravel())
-        dirs = grid_directions(layout.grid)
-        S, c = layout.cell, layout.grid
-        albedo = np.zeros((layout.size, layout.size, 4), np.uint8)
-        normal = np.zeros_like(albedo)
-        for j in range(c):
-            for i in range(c):
-                forward, right, up = view_basis(dirs[j, i])
-                m = np.eye(4)
-                m[:3, 0], m[:3, 1], m[:3, 2] = right, up, -forward      # a camera looks down its -Z
-                m[:3, 3] = layout.centre - forward * 4.0 * layout.radius
-                cam.matrix_world = Matrix(m.tolist())
-                scene.display.shading.color_type = "TEXTURE"
-                scene.view_settings.view_transform = "Standard"
-                scene.display.render_aa = "8"
-                a = _render(scene, os.path.join(folder, "a.png"))
-                for me, name, _ in added:
-                    me.color_attributes.active_color_name = name
-                scene.display.shading.color_type = "VERTEX"
-                scene.view_settings.view_transform = "Raw"           # the attribute's values as they are
-                scene.display.render_aa = "OFF"                      # one surface a pixel: no averaged normals
-                nrm = _render(scene, os.path.join(folder, "n.png"))
-                v = nrm[..., :3].astype(np.float64) / 255.0 * 2.0 - 1.0
-                v /= np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-6)
-                nrm[..., :3] = np.round((v + 1.0) / 2.0 * 255.0).astype(np.uint8)
-                nrm[..., 3] = a[..., 3]                   # the albedo's cut-out leaves are the coverage
-                nrm[a[..., 3] == 0, :3] = 128
-                albedo[j * S:(j + 1) * S, i * S:(i + 1) * S] = a
-                normal[j * S:(j + 1) * S, i * S:(i + 1) * S] = nrm
-        return albedo, normal
-    finally:
-        rig.data.pose_position = old_pose
-        for me, name, active in added:
+class ViewRenderer:
+    """Renders ``meshes`` on ``rig`` at rest in a scene of its own (the user's scene, frame and
+    render settings untouched): :meth:`render` gives a view's albedo (the materials' texture
+    colours, flat light, alpha the coverage) and normals (each vertex's rest normal in glTF axes as
+    a colour attribute, raw view transform). A context manager: on leaving, the scene, the camera,
+    the attributes and the temporary files are gone and the rig's pose is as it was."""
+
+    def __init__(self, rig, meshes):
+        self.rig, self.meshes = rig, list(meshes)
+
+    def __enter__(self) -> "ViewRenderer":
+        self.scene = scene = bpy.data.scenes.new(".Tree from Video views")
+        self.cam = cam = bpy.data.objects.new(".views camera", bpy.data.cameras.new(".views camera"))
+        self.folder = tempfile.mkdtemp(prefix="tree_video_views_")
+        self.old_pose = self.rig.data.pose_position
+        self.added: list = []
+        try:
+            for ob in [self.rig, *self.meshes]:
+                scene.collection.objects.link(ob)
+            scene.collection.objects.link(cam)
+            scene.camera = cam
+            cam.data.type = "ORTHO"
+            r = scene.render
+            r.engine = "BLENDER_WORKBENCH"
+            r.film_transparent = True
+            r.resolution_percentage = 100
+            r.image_settings.file_format = "PNG"
+            r.image_settings.color_mode = "RGBA"
+            r.image_settings.color_depth = "8"
+            scene.display.shading.light = "FLAT"
+            self.rig.data.pose_position = "REST"
+            for ob in self.meshes:                        # rest normals in glTF axes, as colours
+                me = ob.data
+                n = np.empty(3 * len(me.vertices), np.float32)
+                me.vertices.foreach_get("normal", n)
+                attr = me.color_attributes.new(NORMAL_ATTR, "FLOAT_COLOR", "POINT")
+                self.added.append((me, attr.name, me.color_attributes.active_color_name))
+                col = np.ones((len(me.vertices), 4), np.float32)
+                col[:, :3] = 0.5 * (n.reshape(-1, 3) @ TO_GLTF.T + 1.0)
+                attr.data.foreach_set("color", col.ravel())
+        except BaseException:
+            self.__exit__(None, None, None)
+            raise
+        return self
+
+    def render(self, centre, forward, right, up, ortho_scale: float, res: tuple[int, int],
+               depth: float) -> tuple[np.ndarray, np.ndarray]:
+        """``(albedo, normal)`` ``(H, W, 4)`` uint8 RGBA (row 0 the top) of the orthographic view
+        through ``centre`` looking along ``forward`` (Blender axes, unit ``right``/``up``),
+        ``ortho_scale`` metres across the longer side of ``res = (W, H)`` px, the camera ``depth``
+        metres back."""
+        scene, cam = self.scene, self.cam
+        m = np.eye(4)
+        m[:3, 0], m[:3, 1], m[:3, 2] = right, up, -np.asarray(forward)   # a camera looks down its -Z
+        m[:3, 3] = np.asarray(centre) - np.asarray(forward) * depth
+        cam.matrix_world = Matrix(m.tolist())
+        cam.data.ortho_scale = float(ortho_scale)
+        cam.data.clip_start, cam.data.clip_end = 0.001, 2.0 * depth + 1.0
+        scene.render.resolution_x, scene.render.resolution_y = int(res[0]), int(res[1])
+        scene.display.shading.color_type = "TEXTURE"
+        scene.view_settings.view_transform = "Standard"
+        scene.display.render_aa = "8"
+        a = _render(scene, os.path.join(self.folder, "a.png"))
+        for me, name, _ in self.added:
+            me.color_attributes.active_color_name = name
+        scene.display.shading.color_type = "VERTEX"
+        scene.view_settings.view_transform = "Raw"           # the attribute's values as they are
+        scene.display.render_aa = "OFF"                      # one surface a pixel: no averaged normals
+        nrm = _render(scene, os.path.join(self.folder, "n.png"))
+        v = nrm[..., :3].astype(np.float64) / 255.0 * 2.0 - 1.0
+        v /= np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-6)
+        nrm[..., :3] = np.round((v + 1.0) / 2.0 * 255.0).astype(np.uint8)
+        nrm[..., 3] = a[..., 3]                   # the albedo's cut-out leaves are the coverage
+        nrm[a[..., 3] == 0, :3] = 128
+        return a, nrm
+
+    def __exit__(self, *exc) -> None:
+        self.rig.data.pose_position = self.old_pose
+        for me, name, active in self.added:
             attr = me.color_attributes.get(name)
             if attr is not None:
                 me.color_attributes.remove(attr)
             if active and me.color_attributes.get(active) is not None:
                 me.color_attributes.active_color_name = active
-        bpy.data.scenes.remove(scene)
-        cam_data = cam.data
-        bpy.data.objects.remove(cam)
+        bpy.data.scenes.remove(self.scene)
+        cam_data = self.cam.data
+        bpy.data.objects.remove(self.cam)
         bpy.data.cameras.remove(cam_data)
-        for f in os.listdir(folder):
-            os.unlink(os.path.join(folder, f))
-        os.rmdir(folder)
+        for f in os.listdir(self.folder):
+            os.unlink(os.path.join(self.folder, f))
+        os.rmdir(self.folder)
+
+
+def render_atlas(rig, meshes, layout: ImpostorLayout) -> tuple[np.ndarray, np.ndarray]:
+    """``(albedo, normal)`` atlases ``(S, S, 4)`` uint8 RGBA (row 0 the top) of ``meshes`` (the
+    tree's LOD0 objects) on ``rig`` at rest."""
+    dirs = grid_directions(layout.grid)
+    S, c = layout.cell, layout.grid
+    albedo = np.zeros((layout.size, layout.size, 4), np.uint8)
+    normal = np.zeros_like(albedo)
+    with ViewRenderer(rig, meshes) as views:
+        for j in range(c):
+            for i in range(c):
+                forward, right, up = view_basis(dirs[j, i])
+                a, nrm = views.render(layout.centre, forward, right, up, 2.0 * layout.radius, (S, S),
+                                      4.0 * layout.radius)
+                albedo[j * S:(j + 1) * S, i * S:(i + 1) * S] = a
+                normal[j * S:(j + 1) * S, i * S:(i + 1) * S] = nrm
+    return albedo, normal
+
+
+def render_billboard(rig, meshes, view) -> tuple[np.ndarray, np.ndarray]:
+    """``(albedo, normal)`` ``(H, W, 4)`` uint8 RGBA of the tree's front at rest, framed as
+    ``view`` (:class:`core.asset.billboard.BillboardView`)."""
+    with ViewRenderer(rig, meshes) as views:
+        return views.render(view.centre, view.forward, view.right, view.up, view.ortho_scale, view.px,
+                            view.depth)
 
 
 def build_card(layout: ImpostorLayout, albedo: np.ndarray, rig, root_bone: str, coll, name: str, parent,

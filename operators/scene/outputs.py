@@ -12,6 +12,8 @@ import tempfile
 import bpy
 import numpy as np
 
+from ...core.asset.billboard import FILES as BILLBOARD_FILES
+from ...core.asset.billboard import billboard_files, billboard_view
 from ...core.asset.engine_files import engine_line
 from ...core.asset.game import GameSettings, fbx_options
 from ...core.asset.web_viewer import check_viewer_sources, write_viewer
@@ -23,6 +25,7 @@ from ...core.tree3d import Tree3D
 from . import export, trees
 from .build import build_tree
 from .game import build_kwargs, built_engine_files
+from .impostor import render_billboard
 
 
 def wanted_files(out_dir: str, wanted: dict) -> list[str]:
@@ -39,7 +42,7 @@ def check_wanted(wanted: dict) -> None:
 def write_outputs(tree: Tree3D, out_dir: str, wanted: dict, overwrite: bool = False,
                   fresh_scene: bool = True, report=print, leaf_image: str | None = None,
                   loop_s: float = 0.0, game: GameSettings | None = None, stats: dict | None = None,
-                  bark_maps=None) -> dict:
+                  bark_maps=None, billboard_px: int = 0) -> dict:
     """Build ``tree`` in the scene and write the ``wanted`` files into ``out_dir``.
 
     ``wanted`` = {format flag: bool} (:mod:`core.formats`); ``fresh_scene`` starts from an empty
@@ -48,6 +51,8 @@ def write_outputs(tree: Tree3D, out_dir: str, wanted: dict, overwrite: bool = Fa
     detail and engine files (:class:`core.asset.game.GameSettings`); returns {format flag: path}.
     ``stats`` (a job's counts) gets the built rig's bones and the first level's triangles added.
     ``bark_maps``: the bark from photos of bark (:mod:`core.detail.bark_photo`; None: procedural).
+    ``billboard_px`` > 0: the tree's front at rest rendered with that many pixels on its longer side
+    (:mod:`core.asset.billboard`: ``billboard.png``, ``billboard_normal.png``, ``billboard.json``).
     """
     check_wanted(wanted)
     game = game or GameSettings()
@@ -55,7 +60,8 @@ def write_outputs(tree: Tree3D, out_dir: str, wanted: dict, overwrite: bool = Fa
         check_viewer_sources()
         if not wanted.get("gltf"):
             raise InputError("--viewer plays tree.glb; add --gltf")
-    for path in wanted_files(out_dir, wanted) + [os.path.join(out_dir, f) for f in game.files()]:
+    extra_files = list(game.files()) + (list(BILLBOARD_FILES) if billboard_px else [])
+    for path in wanted_files(out_dir, wanted) + [os.path.join(out_dir, f) for f in extra_files]:
         if os.path.exists(path) and not overwrite:
             raise InputError(f"{path} exists; pass --force to overwrite or choose another --out")
     tree, note = maybe_loop(tree, loop_s)
@@ -88,6 +94,9 @@ def write_outputs(tree: Tree3D, out_dir: str, wanted: dict, overwrite: bool = Fa
     if files:
         written["engine"] = write_files(out_dir, files)
         report(f"[engine files] {engine_line(asset, game)}: {', '.join(files)}")
+    if billboard_px:
+        written["billboard"] = write_files(out_dir, billboard(built, tree.name, billboard_px))
+        report(f"[billboard] {written['billboard'][0]} ({billboard_px} px on its longer side)")
     if game.viewer:
         written["viewer"] = write_viewer(out_dir)
         report(f"[viewer] {written['viewer']} (open it through a local server: python -m http.server)")
@@ -98,6 +107,22 @@ def write_outputs(tree: Tree3D, out_dir: str, wanted: dict, overwrite: bool = Fa
         written["blend"] = save_blend(os.path.join(out_dir, by_flag("blend").file))
         report(f"[blend] {written['blend']}")
     return written
+
+
+def billboard(built: dict, tree_name: str, px: int) -> dict[str, bytes]:
+    """The billboard files of a tree ``build_tree`` made (``built``): its first level (or its branch
+    and leaf meshes) rendered at rest from the front, framed on their rest points."""
+    asset = built["asset"]
+    if built["lods"]:
+        meshes, parts = [built["lods"][0]], [asset.lods[0].branches, asset.lods[0].leaves]
+    else:
+        meshes = [ob for ob in (built["mesh"], built["leaves"]) if ob is not None]
+        parts = [asset.branches, asset.leaves]
+    pts = np.concatenate([m.co for m in parts if m is not None])
+    offset = np.asarray(built["armature"].matrix_world.translation, np.float64)    # a shot's tree stands apart
+    view = billboard_view(pts + offset, px)
+    albedo, normal = render_billboard(built["armature"], meshes, view)
+    return billboard_files(view, albedo, normal, tree_name)
 
 
 def lod_line(objs) -> str:
