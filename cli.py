@@ -246,6 +246,11 @@ def build_parser() -> argparse.ArgumentParser:
                                      "species .json file (with a VIDEO the species is fitted from its tree)")
     g.add_argument("--envelope", help="shape the trees fill: triangle, circle, pentagon, heart or a silhouette image "
                                       "(default: the video's outline; without a video circle, triangle for conifers)")
+    g.add_argument("--envelope-variation", type=float, metavar="V",
+                   help=f"each tree grows in its own crown around the envelope, {_range(G, 'envelope_variation')}: "
+                        "its contour mixed V of the way toward the species' and the library's crown contours (seed "
+                        "000's contour space), its leaf colour likewise within the species' range (default "
+                        f"{_default(G, 'envelope_variation'):g}: the envelope as given)")
     g.add_argument("--wind", type=float, default=_default(G, "wind"),
                    help="sway strength (default %(default)s = as in the example; 2 = twice)")
     g.add_argument("--audio", metavar="WAV", help="WAV recording whose loudness drives the sway over time (gusts)")

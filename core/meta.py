@@ -43,6 +43,7 @@ class TreeMeta(TypedDict, total=False):
     solver: str
     loop: dict[str, Any]
     periodic: dict[str, Any]
+    envelope_variation: dict[str, Any]
     base_px: list[float]
     video_size: list[int]
     branch_fit: dict[str, Any]
@@ -106,6 +107,9 @@ KEYS: dict[str, Key] = {
                        "how far the 3D motion's projection lies from the measured 2D motion (shares of the "
                        "height: median, max over measured node-frames; the unmeasured share; measured "
                        "node-frames past motion.REPROJECTION_BOUND)"),
+    "envelope_variation": Key("{variation, weights, width_over_height, leaf_colour}", ("growth.grow_tree",),
+                              "the tree's own crown and leaf colour (--envelope-variation, crown_space.py): "
+                              "V, the contour space's weights, width over height source -> varied, the sRGB colour"),
     "periodic": Key("{frames, seconds}", ("growth.grow_tree",),
                     "a generated tree's sway repeats after these frames (whole-period frequencies): "
                     "a loop by construction, its last frame the first"),

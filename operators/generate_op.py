@@ -100,7 +100,8 @@ def grow_params(props, model_frames: int | None = None, scene=None) -> growth.Gr
     return growth.GrowParams(seed=props.gen_seed, height_m=props.gen_height, node_budget=props.gen_nodes,
                              n_frames=int(frames), fps=fps, wind=props.gen_wind, twig_depth=props.gen_twig_depth,
                              leaf_density=props.gen_leaf_density if props.build_leaves else 0.0,
-                             loop_s=props.loop_seconds)        # a loop: grown on whole periods
+                             loop_s=props.loop_seconds,         # a loop: grown on whole periods
+                             envelope_variation=props.gen_envelope_variation)
 
 
 def audio_path(props) -> str | None:

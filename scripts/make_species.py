@@ -1,12 +1,14 @@
 """Fit the species library shipped in species/*.json from the sample videos.
 
-    .venv/bin/python scripts/make_species.py [--out species] [--work DIR]
+    .venv/bin/python scripts/make_species.py [--out species] [--work DIR] [--contours-only]
 
 broad and sparse are the committed samples (sample_videos/); conifer and palm are generated with
 tests/samples.py (variants "conifer" and "palm") into DIR, the conifer traced and lifted as one
 (leader kept) and the palm as a palm (a trunk with a crown of fronds).
 Each is reconstructed with the default settings (pipeline.run + build_3d, 10 m tall), then
-species.fit_species writes <name>.json.
+species.fit_species writes <name>.json. With --contours-only the files' other numbers stay as they
+are and only what was added since they were fitted is written into them: the source's crown contour
+(``crown_contours``, for --envelope-variation) and its leaves' colour range (``leaves.colour_range``).
 """
 from __future__ import annotations
 
@@ -25,6 +27,8 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", default=os.path.join(ROOT, "species"))
     ap.add_argument("--work", default=None, help="folder for the generated conifer sample")
+    ap.add_argument("--contours-only", action="store_true",
+                    help="keep each file's fitted numbers; add its source's crown contour and leaf colour range")
     args = ap.parse_args(argv)
     load_package()
     from tree_from_video.core.generate import species
@@ -46,6 +50,12 @@ def main(argv=None) -> int:
         tree = pipeline.build_3d(res, s, name=name)
         model = species.fit_species(tree, name)
         path = os.path.join(args.out, f"{name}.json")
+        if args.contours_only:
+            old = species.load_species(path)
+            old.contours = model.contours
+            if old.leaves is not None and model.leaves is not None:
+                old.leaves["colour_range"] = model.leaves.get("colour_range")
+            model = old
         species.save_species(path, model)
         print(f"{name}: {tree.n_nodes} nodes, {tree.n_frames} frames -> {path} "
               f"({time.time() - t0:.1f} s) {species.model_summary(model)}", flush=True)

@@ -50,6 +50,7 @@ CORE_FIELDS = {
     "game_lods": (GameSettings, "lods"),
     "gen_nodes": (GenerateRequest, "nodes"),
     "gen_wind": (GenerateRequest, "wind"),
+    "gen_envelope_variation": (GrowParams, "envelope_variation"),
     "gen_seed": (GenerateRequest, "seed"),
     "forest_variants": (ForestSettings, "variants"),
     "curliness": (MeshParams, "curliness"),
@@ -353,6 +354,11 @@ class TreeVideoSettings(bpy.types.PropertyGroup):
     gen_leaf_density: bpy.props.FloatProperty(name="Foliage", default=1.0, min=0.0, max=1.0, subtype="FACTOR",
                                               description="Share of the species' leaf clusters on a generated tree (1: as "
                                                           "leafy as the species, fewer: fewer, larger clusters; 0: bare)")
+    gen_envelope_variation: bpy.props.FloatProperty(
+        name="Crown Variety", **_core("gen_envelope_variation"), subtype="FACTOR",
+        description="Each generated tree grows in its own crown around the envelope: its outline mixed this far "
+                    "toward the species' and the library's crown outlines (seed 000's contour space), its leaf "
+                    "colour likewise within the species' range (0: the envelope as given)")
     gen_wind: bpy.props.FloatProperty(name="Wind", **_core("gen_wind", soft_max=10.0),
                                       description="Sway amplitude relative to the source video (2 = twice as strong)")
     gen_audio: bpy.props.StringProperty(name="Wind Audio", subtype="FILE_PATH",

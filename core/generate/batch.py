@@ -27,6 +27,7 @@ from ..errors import InputError
 from ..loop import LoopSettings
 from ..params import check, param, same_as
 from ..progress import ProgressFn
+from .growth import GrowParams
 
 MAX_TREES = 1000
 FOLDER_FORMAT = "tree_{:03d}"
@@ -42,7 +43,8 @@ class GenerateRequest:
     reconstruction's envelope, else ``default_envelope``); ``frames_out`` / ``seconds`` the length
     of each animation (None: the species' source clip); ``height_m`` of the envelope;
     ``leaf_density`` 0 for bare trees; ``twig_depth`` generations of twigs (0: none); ``loop_s`` > 0:
-    each tree sways in a loop of that many seconds by construction (``GrowParams.loop_s``)."""
+    each tree sways in a loop of that many seconds by construction (``GrowParams.loop_s``);
+    ``envelope_variation`` 0..1: each tree in its own crown around the envelope (``GrowParams``)."""
 
     count: int = param(1, 1, MAX_TREES, what="--generate")
     species: str | None = None
@@ -57,6 +59,7 @@ class GenerateRequest:
     leaf_density: float = 1.0
     twig_depth: int = same_as(TwigParams, "depth")
     loop_s: float = same_as(LoopSettings, "seconds")
+    envelope_variation: float = same_as(GrowParams, "envelope_variation")
 
 
 def tree_folders(count: int) -> list[str]:
@@ -162,7 +165,7 @@ def generate_trees(model, species_label: str, envelope, envelope_label: str, req
     and whatever ``write_files(tree, folder) -> {format: path}`` writes), then ``generated.json``.
     Returns the per-tree entries of ``generated.json``."""
     from ..tree3d import save_tree
-    from .growth import GrowParams, grow_tree
+    from .growth import grow_tree
     log = log or (lambda m: None)
     n_frames = n_frames_for(req, model)
     entries = []
@@ -173,7 +176,7 @@ def generate_trees(model, species_label: str, envelope, envelope_label: str, req
         params = GrowParams(seed=seed, height_m=None, node_budget=int(req.nodes), n_frames=n_frames,
                             wind=float(req.wind), leaf_density=float(req.leaf_density),
                             twig_depth=int(req.twig_depth), loop_s=float(req.loop_s),
-                            name=f"{model.name}_{seed}")
+                            envelope_variation=float(req.envelope_variation), name=f"{model.name}_{seed}")
         tree = grow_tree(model, envelope, params, audio=req.audio, progress=progress)
         d = os.path.join(out_dir, folder)
         os.makedirs(d, exist_ok=True)

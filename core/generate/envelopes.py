@@ -149,7 +149,7 @@ def largest_component(mask: np.ndarray) -> np.ndarray:
     return lab == big
 
 
-def _rasterize(polys: list[np.ndarray], rows: int) -> tuple[np.ndarray, float, np.ndarray]:
+def rasterize(polys: list[np.ndarray], rows: int) -> tuple[np.ndarray, float, np.ndarray]:
     """Union of (x, z) metre polygons as a mask with ``rows`` rows over their height; returns
     (mask, metres per px, base_px = where (0, 0) lands)."""
     allp = np.concatenate(polys)
@@ -202,7 +202,7 @@ def topiary(shape: str, height_m: float, width_m: float | None = None, stem_frac
     sw = 0.08 * width
     overlap = 0.12 * (height_m - stem_h)
     stem = np.array([[-sw / 2, 0.0], [sw / 2, 0.0], [sw / 2, stem_h + overlap], [-sw / 2, stem_h + overlap]])
-    mask, s, base = _rasterize([crown, stem] if stem_h > 0 else [crown], RASTER_ROWS)
+    mask, s, base = rasterize([crown, stem] if stem_h > 0 else [crown], RASTER_ROWS)
     env = envelope_from_mask(mask, s, base, shape)
     return env
 
@@ -220,7 +220,7 @@ def envelope_from_polygon(poly: np.ndarray, name: str = "curve") -> ShapeEnvelop
     if size <= 0 or area < 1e-4 * max(size, np.ptp(p[:, 0])) ** 2:
         raise InputError("the envelope curve encloses no area (flat or a line); draw a closed outline "
                          "in the front (x-z) view")
-    mask, s, _ = _rasterize([p], RASTER_ROWS)
+    mask, s, _ = rasterize([p], RASTER_ROWS)
     env = envelope_from_mask(mask, s, None, name)
     # where the raster's base (bottom middle) lies in the curve's coordinates
     lo = p.min(0)

@@ -163,6 +163,14 @@ def signed_area(poly: np.ndarray) -> float:
     return 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
 
 
+def mirror_pinned(contour: np.ndarray) -> np.ndarray:
+    """A pinned contour ``(N, 2)`` (x right) seen from behind: x negated about its point 0 (B) and
+    the order reversed from B, so it again runs B → R → L (the old R is the new L)."""
+    c = np.asarray(contour, np.float64).copy()
+    c[:, 0] = 2.0 * c[0, 0] - c[:, 0]
+    return np.concatenate([c[:1], c[1:][::-1]])
+
+
 def oriented_contour(mask: np.ndarray) -> np.ndarray:
     """The longest external contour of ``mask`` ``(K, 2)`` float px, running up the right side from
     the bottom (negative :func:`signed_area`)."""
@@ -201,18 +209,19 @@ def resample_polyline(pts: np.ndarray, n: int) -> np.ndarray:
     return np.stack([np.interp(t, s, pts[:, 0]), np.interp(t, s, pts[:, 1])], 1)
 
 
-def resample_pinned(contour: np.ndarray, b: int, r: int, l_: int) -> np.ndarray:
-    """``(N_POINTS, 2)``: B→R, R→L, L→B resampled to :data:`TRUNK_POINTS`, :data:`CROWN_POINTS`,
-    :data:`TRUNK_POINTS` points (the contour runs B → R → L → B)."""
+def resample_pinned(contour: np.ndarray, b: int, r: int, l_: int,
+                    counts: tuple[int, int, int] = (TRUNK_POINTS, CROWN_POINTS, TRUNK_POINTS)) -> np.ndarray:
+    """``(sum(counts), 2)``: B→R, R→L, L→B resampled to ``counts`` points (default
+    :data:`TRUNK_POINTS`, :data:`CROWN_POINTS`, :data:`TRUNK_POINTS`; the contour runs B → R → L → B)."""
     k = len(contour)
     c = np.roll(contour, -b, axis=0)
     c = np.concatenate([c, c[:1]])                      # closed: index k is B again
     ri, li = (r - b) % k, (l_ - b) % k
     if ri == 0 and li == 0:                             # no trunk: the whole loop is crown
         ri, li = 0, k
-    return np.concatenate([resample_polyline(c[:ri + 1], TRUNK_POINTS),
-                           resample_polyline(c[ri:li + 1], CROWN_POINTS),
-                           resample_polyline(c[li:], TRUNK_POINTS)])
+    return np.concatenate([resample_polyline(c[:ri + 1], counts[0]),
+                           resample_polyline(c[ri:li + 1], counts[1]),
+                           resample_polyline(c[li:], counts[2])])
 
 
 def simplified(contour: np.ndarray, size: int) -> np.ndarray:

@@ -50,7 +50,7 @@ from ..errors import InputError
 from ..loop import LoopSettings
 from ..meta import TreeMeta
 from ..outline import Outline, polygon_to_mask
-from ..params import check, same_as
+from ..params import check, param, same_as
 from ..progress import ProgressFn, report, sub_progress
 from ..reconstruct.lift import LiftParams, lift
 from ..reconstruct.skeleton2d import Skeleton2D
@@ -88,7 +88,10 @@ class GrowParams:
     reconstruction records it (the same defaults: a grown tree looks like a reconstructed one
     wherever it is built); ``loop_s`` > 0: the tree sways in a loop by construction, ``round(loop_s
     · fps) + 1`` frames (``n_frames`` ignored) on whole-period frequencies, the last frame the
-    first (``meta["periodic"]``; :func:`core.loop.loop_tree` then blends nothing)."""
+    first (``meta["periodic"]``; :func:`core.loop.loop_tree` then blends nothing);
+    ``envelope_variation`` 0..1: the tree grows in its own crown around the envelope's and its
+    leaves take their own colour within the species' range (:mod:`.crown_space`; 0: the envelope
+    and colour as given), recorded in ``meta["envelope_variation"]``."""
 
     seed: int = 0
     height_m: float | None = None
@@ -118,6 +121,7 @@ class GrowParams:
     curliness: float = same_as(MeshParams, "curliness")
     bark: str = same_as(MeshParams, "bark")
     loop_s: float = same_as(LoopSettings, "seconds")
+    envelope_variation: float = param(0.0, 0.0, 1.0, what="--envelope-variation")
 
 
 @dataclass
@@ -519,6 +523,15 @@ def grow_tree(model: SpeciesModel, envelope: Envelope, params: GrowParams | None
         gains = gain_curve(n_frames, p.wind)
     ss = np.random.SeedSequence([int(p.seed) & 0xFFFFFFFF, 0x7EE])
     rng_grow, rng_sway = (np.random.default_rng(s) for s in ss.spawn(2))
+    variation = None
+    leaves_info = model.leaves
+    if p.envelope_variation > 0:                   # its own crown and leaf colour (crown_space)
+        from .crown_space import contour_space, varied_envelope, varied_leaf_colour
+        rng_var = np.random.default_rng([int(p.seed) & 0xFFFFFFFF, 0xE17])
+        from .species import library_contours
+        space = contour_space(model.contours, library_contours())
+        env, variation = varied_envelope(env, space, float(p.envelope_variation), rng_var)
+        leaves_info, variation["leaf_colour"] = varied_leaf_colour(model.leaves, float(p.envelope_variation), rng_var)
     region = region_of(env)
     report(progress, "growing", 0.0)
     palm = model.palm if model.form == "palm" else None
@@ -557,11 +570,13 @@ def grow_tree(model: SpeciesModel, envelope: Envelope, params: GrowParams | None
             "mesh": {"curliness": float(p.curliness), "bark": str(p.bark), "seed": int(p.seed)}}
     if period_s is not None:
         meta["periodic"] = {"frames": int(n_frames - 1), "seconds": float(period_s)}
+    if variation is not None:
+        meta["envelope_variation"] = variation
     tree = Tree3D(g.parents.astype(np.int32), nodes3d.astype(np.float32), radius,
                   branching_level(g.parents).astype(np.int32), fps, p.name or f"{model.name}_{int(p.seed)}", meta)
     if not palm and p.twig_depth > 0:
         tree = with_twigs(tree, rest, region, TwigParams(depth=int(p.twig_depth), seed=int(p.seed)))
-    if p.leaf_density > 0 and model.leaves is not None:
+    if p.leaf_density > 0 and leaves_info is not None:
         from ..detail.grown_leaves import grow_leaves
-        tree.leaves = grow_leaves(tree, model.leaves, p.leaf_density, int(p.seed), envelope=env)
+        tree.leaves = grow_leaves(tree, leaves_info, p.leaf_density, int(p.seed), envelope=env)
     return tree

@@ -6,6 +6,7 @@ reconstructed tree, and the human-readable JSON species files (the shipped libra
 """
 from __future__ import annotations
 
+import functools
 import json
 import math
 import os
@@ -19,7 +20,9 @@ from ..detail.grown_leaves import envelope_cover
 from ..envelope import envelope_from_meta
 from ..errors import InputError
 from ..forms import form_of
+from .crown_space import N_CONTOUR, envelope_contour
 from .dirichlet import fit_dirichlet
+from .envelopes import envelope_from_polygon
 from .features import (
     KEEP_FRACTION,
     SpectralFeatures,
@@ -91,7 +94,9 @@ class SpeciesModel:
     nodes sway (:func:`sway_excursion`, a share of the height; None in files fitted before it was
     measured), which generated trees are scaled to at wind 1; ``widths`` ``(trunk, tip)`` the
     source's trunk-base and median tip radius as shares of its height (None in older files:
-    generated trees then take :class:`..growth.GrowParams`' defaults)."""
+    generated trees then take :class:`..growth.GrowParams`' defaults); ``contours`` the sources'
+    crown contours (:func:`.crown_space.envelope_contour`: ``(N_CONTOUR, 2)`` (x, z) over the height,
+    pinned; none in files fitted before them), what ``--envelope-variation`` mixes."""
 
     name: str
     angles: np.ndarray
@@ -117,6 +122,7 @@ class SpeciesModel:
     widths: tuple | None = None           # (trunk, tip) radius / height (:func:`branch_widths`); None: not measured
     form: str = "broadleaf"               # forms.TREE_FORMS; files before forms: from ``conifer``
     palm: dict | None = None              # a palm's crown (palm.palm_info); None for other forms
+    contours: list = field(default_factory=list)   # the sources' crown contours (crown_space), (200, 2) each
 
     def to_json(self) -> dict:
         """JSON-able dict (rounded, human-readable)."""
@@ -152,8 +158,12 @@ class SpeciesModel:
                            "radius_frac": round(float(self.leaves["radius_frac"]), 5),
                            "cards": int(self.leaves["cards"]),
                            "per_node": round(float(self.leaves["per_node"]), 4),
-                           **({"fill": round(float(self.leaves["fill"]), 4)} if "fill" in self.leaves else {})}}
+                           **({"fill": round(float(self.leaves["fill"]), 4)} if "fill" in self.leaves else {}),
+                           **({"colour_range": np.asarray(self.leaves["colour_range"], float).round(4).tolist()}
+                              if self.leaves.get("colour_range") is not None else {})}}
                if self.leaves else {}),
+            **({"crown_contours": [np.asarray(c, float).round(4).tolist() for c in self.contours]}
+               if self.contours else {}),
         }
 
     @classmethod
@@ -200,7 +210,7 @@ class SpeciesModel:
                         ver, list(d.get("fallbacks", [])), _leaf_info(d.get("leaves")),
                         None if src.get("sway_excursion") is None else float(src["sway_excursion"]),
                         _widths(sh), form_of(bool(d.get("conifer", False)), d.get("form")),
-                        _palm(d.get("palm")))
+                        _palm(d.get("palm")), _contours(d.get("crown_contours")))
         except (KeyError, TypeError, ValueError) as exc:
             raise InputError(f"{where} is incomplete or damaged ({exc.__class__.__name__}: {exc}); "
                              "fit the species again or pick another file") from None
@@ -208,6 +218,17 @@ class SpeciesModel:
                 and 0 < model.min_branch_frac < 1 and model.fps > 0):
             raise InputError(f"{where} has out-of-range shape numbers; fit the species again")
         return model
+
+
+def _contours(d) -> list:
+    """The ``crown_contours`` of a species file: a list of ``(N_CONTOUR, 2)`` arrays."""
+    out = []
+    for c in d or []:
+        a = np.asarray(c, np.float64)
+        if a.shape != (N_CONTOUR, 2) or not np.all(np.isfinite(a)):
+            raise ValueError(f"a crown contour must be {N_CONTOUR} (x, z) pairs")
+        out.append(a)
+    return out
 
 
 def _palm(d) -> dict | None:
@@ -235,6 +256,11 @@ def _leaf_info(d) -> dict | None:
     colour = [float(c) for c in d["colour"]]
     info: dict[str, Any] = {"colour": colour, "radius_frac": float(d["radius_frac"]), "cards": int(d["cards"]),
             "per_node": float(d["per_node"])}
+    if d.get("colour_range") is not None:
+        rng_ = np.asarray(d["colour_range"], np.float64)
+        if rng_.shape != (2, 3) or not np.all((rng_ >= 0) & (rng_ <= 1)):
+            raise ValueError("leaves' colour_range must be two sRGB colours 0..1")
+        info["colour_range"] = rng_.tolist()
     if d.get("fill") is not None:
         info["fill"] = float(d["fill"])
         if not 0 < info["fill"] <= 1:
@@ -255,7 +281,10 @@ def leaf_info(tree) -> dict | None:
     r = np.asarray(tree.radius, np.float64)
     thin = int(np.sum(r < 0.3 * r.max())) or 1
     info = {"colour": np.median(lv.colour, axis=0).tolist(), "radius_frac": float(lv.radius / H),
-            "cards": int(lv.cards), "per_node": float(lv.count / thin)}
+            "cards": int(lv.cards), "per_node": float(lv.count / thin),
+            # the clusters' colours, 10th and 90th percentiles: the range a generated tree's leaves
+            # vary in (--envelope-variation)
+            "colour_range": np.percentile(np.asarray(lv.colour, np.float64), [10, 90], axis=0).tolist()}
     env = envelope_from_meta(tree.meta)
     if env is not None:
         info["fill"] = envelope_cover(lv, env)
@@ -382,7 +411,19 @@ def fit_species(tree, name: str, keep: float = KEEP_FRACTION) -> SpeciesModel:
         n_frames=int(nodes.shape[0]), conifer=form == "conifer",
         mu_deg=float(tree.meta.get("mu_deg", 38.0)), fallbacks=fallbacks, leaves=leaf_info(tree),
         sway_excursion=sway_excursion(nodes, height), widths=branch_widths(parents, tree.radius, height),
-        form=form, palm=palm_info(parents, nodes[0]) if form == "palm" else None)
+        form=form, palm=palm_info(parents, nodes[0]) if form == "palm" else None,
+        contours=source_contours(tree))
+
+
+def source_contours(tree) -> list:
+    """The crown contour of ``tree``'s envelope (:func:`.crown_space.envelope_contour`), or none
+    when it has no envelope."""
+    from ..envelope import envelope_from_meta
+    poly = (tree.meta.get("envelope") or {}).get("polygon")
+    env = envelope_from_polygon(np.asarray(poly, float)) if poly is not None else envelope_from_meta(tree.meta)
+    if env is None or not len(env.z) or not np.max(env.radius) > 0:
+        return []
+    return [envelope_contour(env)]
 
 
 def branch_widths(parents: np.ndarray, radius: np.ndarray, height: float) -> tuple[float, float]:
@@ -433,6 +474,15 @@ def load_species(path: str | os.PathLike) -> SpeciesModel:
 
 
 SPECIES_DIR = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))), "species")
+
+
+@functools.lru_cache(maxsize=1)
+def library_contours() -> tuple[np.ndarray, ...]:
+    """The crown contours of the shipped species (:attr:`SpeciesModel.contours`), read once."""
+    out: list[np.ndarray] = []
+    for path in species_library().values():
+        out += [np.asarray(c, np.float64) for c in load_species(path).contours]
+    return tuple(out)
 
 
 def species_library(folder: str | None = None) -> dict[str, str]:
