@@ -44,6 +44,7 @@ class TreeMeta(TypedDict, total=False):
     loop: dict[str, Any]
     periodic: dict[str, Any]
     envelope_variation: dict[str, Any]
+    allometry: dict[str, Any]
     base_px: list[float]
     video_size: list[int]
     branch_fit: dict[str, Any]
@@ -107,6 +108,10 @@ KEYS: dict[str, Key] = {
                        "how far the 3D motion's projection lies from the measured 2D motion (shares of the "
                        "height: median, max over measured node-frames; the unmeasured share; measured "
                        "node-frames past motion.REPROJECTION_BOUND)"),
+    "allometry": Key("{forks, pipe_exponent, pipe_exponent_iqr, no_exponent, leonardo_residual, holton_error_deg, "
+                     "branch_angle_deg, species_mu_deg}", ("pipeline.build_3d", "growth.grow_tree"),
+                     "the pipe model's exponent and Holton's branching angles measured per fork "
+                     "(generate/allometry.py; before twigs)"),
     "envelope_variation": Key("{variation, weights, width_over_height, leaf_colour}", ("growth.grow_tree",),
                               "the tree's own crown and leaf colour (--envelope-variation, crown_space.py): "
                               "V, the contour space's weights, width over height source -> varied, the sRGB colour"),

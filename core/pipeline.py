@@ -19,6 +19,7 @@ from .detail.leaf_seeds import place_leaves
 from .detail.twigs import TwigParams, add_twigs, check_twig_params
 from .envelope import envelope_to_meta
 from .errors import InputError
+from .generate.allometry import allometry_report
 from .generate.limbs import LIMB_SOURCES, grown_limbs, limb_species
 from .generate.photo import PhotoMotion, species_for
 from .generate.photo import sway as photo_sway
@@ -276,6 +277,8 @@ def build_3d(res: Result, s: Settings | None = None, name: str = "Tree",
                              radius_px if radius_px is not None else radius / scale,
                              fg.mask if fg is not None else None)
         meta["bark_colour"] = (hidden_bark() if sk.hidden_trunk else bark_colour(frame, trunk, tree_px, light)).meta("albedo")
+    # the pipe model's exponent and Holton's angles per fork (seed 001 §4.4), before the twigs
+    meta["allometry"] = allometry_report(tree.parents, tree.nodes3d[0], tree.radius)
     tree = add_twigs(tree, s.twigs, parts["details"], tree_px)  # after the motion solve, before the leaves
     tree = add_leaves(res, tree, s, frame, tree_px, fg.mask if fg is not None else None, light)
     if res.form == "palm":                      # a palm's leaflets line its fronds, as wide as frame 1 shows

@@ -56,6 +56,7 @@ from ..reconstruct.lift import LiftParams, lift
 from ..reconstruct.skeleton2d import Skeleton2D
 from ..topology import branching_level
 from ..tree3d import Tree3D, pipe_radii
+from .allometry import allometry_report
 from .envelopes import Region2D, envelope_meta, region_of
 from .species import SpeciesModel, sway_excursion
 from .sway import forward_kinematics, sample_rotations
@@ -572,6 +573,7 @@ def grow_tree(model: SpeciesModel, envelope: Envelope, params: GrowParams | None
         meta["periodic"] = {"frames": int(n_frames - 1), "seconds": float(period_s)}
     if variation is not None:
         meta["envelope_variation"] = variation
+    meta["allometry"] = allometry_report(g.parents, rest, radius, model.mu_deg)
     tree = Tree3D(g.parents.astype(np.int32), nodes3d.astype(np.float32), radius,
                   branching_level(g.parents).astype(np.int32), fps, p.name or f"{model.name}_{int(p.seed)}", meta)
     if not palm and p.twig_depth > 0:
