@@ -251,6 +251,10 @@ def build_parser() -> argparse.ArgumentParser:
                         "its contour mixed V of the way toward the species' and the library's crown contours (seed "
                         "000's contour space), its leaf colour likewise within the species' range (default "
                         f"{_default(G, 'envelope_variation'):g}: the envelope as given)")
+    g.add_argument("--allometry", action="store_true", default=None,
+                   help="turn each fork's two children together so the thicker bends less, by Holton's rule "
+                        "(a1 = a d2^2 / (d1^2 + d2^2), seed 001), within the envelope; broadleaf trees (it moves "
+                        "the species' measured split of the fork angle)")
     g.add_argument("--wind", type=float, default=_default(G, "wind"),
                    help="sway strength (default %(default)s = as in the example; 2 = twice)")
     g.add_argument("--audio", metavar="WAV", help="WAV recording whose loudness drives the sway over time (gusts)")

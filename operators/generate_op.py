@@ -101,7 +101,7 @@ def grow_params(props, model_frames: int | None = None, scene=None) -> growth.Gr
                              n_frames=int(frames), fps=fps, wind=props.gen_wind, twig_depth=props.gen_twig_depth,
                              leaf_density=props.gen_leaf_density if props.build_leaves else 0.0,
                              loop_s=props.loop_seconds,         # a loop: grown on whole periods
-                             envelope_variation=props.gen_envelope_variation)
+                             envelope_variation=props.gen_envelope_variation, allometry=props.gen_allometry)
 
 
 def audio_path(props) -> str | None:

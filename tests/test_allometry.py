@@ -71,3 +71,51 @@ def test_a_reconstruction_reports_its_forks():
     # traced as thick as its father
     assert rep["forks"] >= 20 and 1.8 <= rep["pipe_exponent"] <= 2.6 and rep["no_exponent"] <= 0.2 * rep["forks"]
     assert rep["leonardo_residual"] < 0.1 and 0 < rep["holton_error_deg"] < 30
+
+
+def test_holton_pose_by_hand():
+    from tree_from_video.core.generate.allometry import holton_pose
+
+    def xz(deg, length=1.0, origin=(0.0, 1.0)):
+        a = np.radians(deg)
+        return [origin[0] + length * np.sin(a), 0.0, origin[1] + length * np.cos(a)]
+    # father straight up; the thicker child (r 0.8) 50° right, the thinner (r 0.6) 10° left: a = 60°,
+    # so after the turn the thicker is 21.6° right and the thinner 38.4° left, lengths unchanged
+    pos = np.array([[0, 0, 0], [0, 0, 1], xz(50), xz(-10), xz(50, 2.0)], float)   # node 4 rides on 2
+    parents = np.array([-1, 0, 1, 1, 2])
+    out, info = holton_pose(parents, pos, np.ones(5, bool), np.array([1.0, 1.0, 0.8, 0.6, 0.5]))
+    ang = lambda k: np.degrees(np.arctan2(out[k, 0] - out[1, 0], out[k, 2] - out[1, 2]))   # noqa: E731
+    assert info["turned"] == 1 and abs(ang(2) - 21.6) < 0.01 and abs(ang(3) + 38.4) < 0.01
+    assert abs(ang(4) - ang(2)) < 1e-9                                        # the subtree turned with it
+    assert np.allclose(np.linalg.norm(out[2:4] - out[1], axis=1), 1.0) and np.allclose(out[:, 1], 0.0)
+    # children on one side of the father's line end on either side of it: a = 30°, the thicker
+    # (node 3) 30 · 0.36 = 10.8° off the line, away from the thinner
+    pos2 = np.array([[0, 0, 0], [0, 0, 1], xz(40), xz(10)], float)
+    out2, _ = holton_pose(np.array([-1, 0, 1, 1]), pos2, np.ones(4, bool), np.array([1.0, 1.0, 0.6, 0.8]))
+    got = [np.degrees(np.arctan2(out2[k, 0] - out2[1, 0], out2[k, 2] - out2[1, 2])) for k in (2, 3)]
+    assert abs(abs(got[1]) - 10.8) < 0.01 and abs(abs(got[0]) - 19.2) < 0.01 and got[0] * got[1] < 0
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("species,shape", [("broad", "circle"), ("sparse", "circle"), ("broad", "heart")])
+def test_generated_trees_follow_holton(species, shape):
+    from tree_from_video.core.generate.envelopes import region_of
+    model = load_species_spec(species)[0]
+    env = topiary(shape, 10.0)
+    region = region_of(env)
+    err, inside = {}, {}
+    for on in (False, True):
+        trees = [grow_tree(model, env, GrowParams(seed=s, n_frames=4, node_budget=200, twig_depth=0, leaf_density=0.0,
+                                                  allometry=on)) for s in (70, 71, 72)]
+        err[on] = np.median([t.meta["allometry"]["holton_error_deg"] for t in trees])
+        inside[on] = np.mean([region.contains(t.nodes3d[0][:, [0, 2]].astype(float)).mean() for t in trees])
+    print(f"{species}: Holton error {err[False]:.1f}° -> {err[True]:.1f}°, inside {inside[False]:.3f} -> {inside[True]:.3f}")
+    assert err[True] <= 0.5 * err[False] and err[True] <= 10.0 and inside[True] >= inside[False]
+
+
+def test_conifers_keep_their_whorls():
+    model = load_species_spec("conifer")[0]
+    env = topiary("triangle", 10.0)
+    a, b = (grow_tree(model, env, GrowParams(seed=75, n_frames=4, node_budget=150, twig_depth=0, leaf_density=0.0,
+                                             allometry=on)) for on in (False, True))
+    assert np.array_equal(a.nodes3d, b.nodes3d) and "holton_turns" not in b.meta["allometry"]

@@ -48,6 +48,8 @@ def test_the_options_are_the_batch_parsers():
     (["--tree", "t/tree3d.npz", "--out", "d", "--engine", "godot"], jobs.ExportJob),
     (["v.mp4", "--outline", "o.json", "--out", "d", "--gltf", "--bark-image", "a.jpg", "--bark-image", "b.jpg",
       "--moss", "0", "--bark-scale", "30"], jobs.ReconstructJob),
+    (["--generate", "2", "--species", "broad", "--out", "d", "--allometry", "--envelope-variation", "0.3",
+      "--billboard", "256"], jobs.GenerateJob),
     (["--variations", "5", "--exemplars", "a.png", "b.png", "--exemplars", "c.png", "--seed", "3", "--out", "d"],
      jobs.VariationsJob),
 ])

@@ -263,6 +263,7 @@ class TREE_PT_generate(_TreePanel, bpy.types.Panel):
         col.prop(props, "gen_frames")
         col.prop(props, "gen_leaf_density", slider=True)
         col.prop(props, "gen_envelope_variation", slider=True)
+        col.prop(props, "gen_allometry")
         col.prop(props, "gen_wind")
         path_field(col, props, "gen_audio")
         col.operator("tree_video.generate", icon="OUTLINER_OB_FORCE_FIELD")

@@ -359,6 +359,11 @@ class TreeVideoSettings(bpy.types.PropertyGroup):
         description="Each generated tree grows in its own crown around the envelope: its outline mixed this far "
                     "toward the species' and the library's crown outlines (seed 000's contour space), its leaf "
                     "colour likewise within the species' range (0: the envelope as given)")
+    gen_allometry: bpy.props.BoolProperty(
+        name="Holton Angles", default=False,
+        description="Turn each fork's two children together so the thicker bends less, by Holton's rule "
+                    "(seed 001's allometry), within the envelope; broadleaf trees (it moves the species' "
+                    "measured split of the fork angle)")
     gen_wind: bpy.props.FloatProperty(name="Wind", **_core("gen_wind", soft_max=10.0),
                                       description="Sway amplitude relative to the source video (2 = twice as strong)")
     gen_audio: bpy.props.StringProperty(name="Wind Audio", subtype="FILE_PATH",

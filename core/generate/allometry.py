@@ -19,9 +19,12 @@ compares the tree's mean branching angle with the species' (``mu_deg``).
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
+
+from ..topology import children_lists, node_depths
 
 #: a fork's exponent is searched in this range
 EXPONENT_RANGE = (0.5, 8.0)
@@ -125,3 +128,99 @@ def allometry_report(parents: np.ndarray, pos: np.ndarray, radius: np.ndarray, m
     if mu_deg is not None:
         out["species_mu_deg"] = round(float(mu_deg), 3)
     return out
+
+
+def _subtree_masks(parents: np.ndarray, roots: np.ndarray) -> np.ndarray:
+    """``(R, N)`` bool: node n is in the subtree of ``roots[r]`` (itself included)."""
+    parents = np.asarray(parents)
+    n = len(parents)
+    anc = np.arange(n)
+    member = np.zeros((len(roots), n), bool)
+    for _ in range(n):                         # walk every node up one level at a time (depth steps)
+        member |= anc[None] == np.asarray(roots)[:, None]
+        up = anc >= 0
+        if not up.any():
+            break
+        anc = np.where(up, parents[np.maximum(anc, 0)], -1)
+    return member
+
+
+def _rotate(v: np.ndarray, k: np.ndarray, theta) -> np.ndarray:
+    """Rodrigues: ``v (..., 3)`` turned by ``theta`` about the unit axis ``k (3,)``."""
+    theta = np.asarray(theta, np.float64)[..., None]
+    return v * np.cos(theta) + np.cross(k, v) * np.sin(theta) + k * (v @ k)[..., None] * (1 - np.cos(theta))
+
+
+def _turn_cost(theta: np.ndarray, u1: np.ndarray, u2: np.ndarray, axis: np.ndarray, f: np.ndarray,
+               want: tuple[float, float]) -> np.ndarray:
+    """How far both children turned by ``theta`` lie from the angles to the father's line ``f`` that
+    Holton's rule ``want`` s (radians, summed), plus a thousandth of the turn (the smallest of equals)."""
+    g1 = np.arccos(np.clip(_rotate(u1, axis, theta) @ f, -1.0, 1.0))
+    g2 = np.arccos(np.clip(_rotate(u2, axis, theta) @ f, -1.0, 1.0))
+    return np.abs(g1 - want[0]) + np.abs(g2 - want[1]) + 1e-3 * np.abs(theta)
+
+
+def holton_pose(parents: np.ndarray, pos: np.ndarray, anchor: np.ndarray, radius: np.ndarray,
+                inside=None, gamma: float = 2.0) -> tuple[np.ndarray, dict]:
+    """``(pos', info)``: a tree's rest pose ``pos (N, 3)`` with every two-child fork's children
+    turned together about the fork (a rigid turn about the normal of their plane, so the angle ``a``
+    between them is kept) until the thicker leaves the father's line by ``a · d_2^γ / (d_1^γ +
+    d_2^γ)`` and the thinner by the rest of ``a`` (Holton, module docstring), or as near as a turn in
+    that plane gets them (the turn is
+    searched every degree, then every hundredth of one). Directions are branch chords (fork → the child's next ``anchor``; the
+    father's previous anchor → fork). Forks are taken root first, so a turn carries the forks above
+    it. With ``inside`` (points ``(P, 3)`` → bool) a turn that would take any node of the subtree out
+    of the envelope that was in it is halved, then dropped. ``info``: forks, forks turned, the median turn in degrees."""
+    parents = np.asarray(parents)
+    pos = np.asarray(pos, np.float64).copy()
+    r = np.asarray(radius, np.float64)
+    kids = children_lists(parents)
+    depth = node_depths(parents)
+    fork = sorted((n for n in range(len(parents)) if len(kids[n]) == 2 and parents[n] >= 0), key=lambda n: depth[n])
+    if not fork:
+        return pos, {"forks": 0, "turned": 0}
+    pair = np.array([sorted(kids[n], key=lambda c: -r[c]) for n in fork])      # (F, 2): thicker first
+    subs = _subtree_masks(parents, pair.T.ravel())
+    F = len(fork)
+    anchor = np.asarray(anchor, bool)
+    grid = np.radians(np.arange(-180.0, 180.0, 1.0))
+
+    def chord_end(c: int) -> int:              # the child's next anchor along its chain
+        while not anchor[c] and len(kids[c]) == 1:
+            c = kids[c][0]
+        return c
+
+    def chord_start(n: int) -> int:            # the father's previous anchor
+        p = int(parents[n])
+        while p >= 0 and not anchor[p] and parents[p] >= 0:
+            p = int(parents[p])
+        return max(p, 0)
+
+    def unit(v):
+        return v / max(float(np.linalg.norm(v)), 1e-12)
+
+    turns = []
+    for i, n in enumerate(fork):
+        c1, c2 = int(pair[i, 0]), int(pair[i, 1])
+        f = unit(pos[n] - pos[chord_start(n)])
+        u1, u2 = unit(pos[chord_end(c1)] - pos[n]), unit(pos[chord_end(c2)] - pos[n])
+        axis = np.cross(u1, u2)
+        if np.linalg.norm(axis) < 1e-6:                    # children in one line: no plane to turn in
+            continue
+        axis = unit(axis)
+        a = math.acos(float(np.clip(u1 @ u2, -1.0, 1.0)))
+        w = r[c2] ** gamma / max(r[c1] ** gamma + r[c2] ** gamma, 1e-300)
+        want = (a * w, a * (1.0 - w))
+        theta = float(grid[int(np.argmin(_turn_cost(grid, u1, u2, axis, f, want)))])
+        fine = theta + np.radians(np.arange(-1.0, 1.0 + 1e-9, 0.01))          # then to a hundredth of one
+        theta = float(fine[int(np.argmin(_turn_cost(fine, u1, u2, axis, f, want)))])
+        member = subs[i] | subs[F + i]
+        for k in (1.0, 0.5, 0.0):
+            moved = pos[n] + _rotate(pos[member] - pos[n], axis, k * theta)
+            if inside is None or k == 0.0 or not (inside(pos[member]) & ~inside(moved)).any():
+                pos[member] = moved
+                if k > 0 and theta != 0.0:
+                    turns.append(abs(k * theta))
+                break
+    return pos, {"forks": F, "turned": len(turns),
+                 "median_turn_deg": round(float(np.degrees(np.median(turns))), 3) if turns else 0.0}

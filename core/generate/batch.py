@@ -44,7 +44,8 @@ class GenerateRequest:
     of each animation (None: the species' source clip); ``height_m`` of the envelope;
     ``leaf_density`` 0 for bare trees; ``twig_depth`` generations of twigs (0: none); ``loop_s`` > 0:
     each tree sways in a loop of that many seconds by construction (``GrowParams.loop_s``);
-    ``envelope_variation`` 0..1: each tree in its own crown around the envelope (``GrowParams``)."""
+    ``envelope_variation`` 0..1: each tree in its own crown around the envelope; ``allometry``: the
+    forks' angles by Holton's rule (both ``GrowParams``)."""
 
     count: int = param(1, 1, MAX_TREES, what="--generate")
     species: str | None = None
@@ -60,6 +61,7 @@ class GenerateRequest:
     twig_depth: int = same_as(TwigParams, "depth")
     loop_s: float = same_as(LoopSettings, "seconds")
     envelope_variation: float = same_as(GrowParams, "envelope_variation")
+    allometry: bool = False
 
 
 def tree_folders(count: int) -> list[str]:
@@ -176,7 +178,8 @@ def generate_trees(model, species_label: str, envelope, envelope_label: str, req
         params = GrowParams(seed=seed, height_m=None, node_budget=int(req.nodes), n_frames=n_frames,
                             wind=float(req.wind), leaf_density=float(req.leaf_density),
                             twig_depth=int(req.twig_depth), loop_s=float(req.loop_s),
-                            envelope_variation=float(req.envelope_variation), name=f"{model.name}_{seed}")
+                            envelope_variation=float(req.envelope_variation), allometry=bool(req.allometry),
+                            name=f"{model.name}_{seed}")
         tree = grow_tree(model, envelope, params, audio=req.audio, progress=progress)
         d = os.path.join(out_dir, folder)
         os.makedirs(d, exist_ok=True)

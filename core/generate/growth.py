@@ -56,8 +56,8 @@ from ..reconstruct.lift import LiftParams, lift
 from ..reconstruct.skeleton2d import Skeleton2D
 from ..topology import branching_level
 from ..tree3d import Tree3D, pipe_radii
-from .allometry import allometry_report
-from .envelopes import Region2D, envelope_meta, region_of
+from .allometry import allometry_report, holton_pose
+from .envelopes import RASTER_ROWS, Region2D, envelope_meta, region_of
 from .species import SpeciesModel, sway_excursion
 from .sway import forward_kinematics, sample_rotations
 from .wind import audio_envelope, gain_curve
@@ -123,6 +123,7 @@ class GrowParams:
     bark: str = same_as(MeshParams, "bark")
     loop_s: float = same_as(LoopSettings, "seconds")
     envelope_variation: float = param(0.0, 0.0, 1.0, what="--envelope-variation")
+    allometry: bool = False
 
 
 @dataclass
@@ -524,7 +525,7 @@ def grow_tree(model: SpeciesModel, envelope: Envelope, params: GrowParams | None
         gains = gain_curve(n_frames, p.wind)
     ss = np.random.SeedSequence([int(p.seed) & 0xFFFFFFFF, 0x7EE])
     rng_grow, rng_sway = (np.random.default_rng(s) for s in ss.spawn(2))
-    variation = None
+    variation = holton = None
     leaves_info = model.leaves
     if p.envelope_variation > 0:                   # its own crown and leaf colour (crown_space)
         from .crown_space import contour_space, varied_envelope, varied_leaf_colour
@@ -545,6 +546,13 @@ def grow_tree(model: SpeciesModel, envelope: Envelope, params: GrowParams | None
     else:
         g = grow_2d(model, region, p, rng_grow, sub_progress(progress, 0.0, 0.4))
         rest, lifted = lift_grown(g, region, conifer, p, sub_progress(progress, 0.4, 0.85), env)
+        if p.allometry and not conifer:            # Holton's angles at the forks (seed 001 §4.4); a
+            # conifer's whorls off its leader are no forks of two (measured: turning them rounds its cone)
+            r_h = species_radii(g.parents, float(max(rest[:, 2].max(), 1e-6)), model.widths, p.tip_radius,
+                                p.pipe_exponent)
+            cell = region.height() / RASTER_ROWS        # inside as the growth keeps its nodes (2D and Ω's depth)
+            rest, holton = holton_pose(g.parents, rest, g.anchor, r_h,
+                                       inside=lambda q: region.contains(q[:, [0, 2]]) & env.contains(q, tol=cell))
         mu = float(lifted.mu)
     report(progress, "animating", 0.85)
     phase = None if p.tree_phase is None else np.asarray(p.tree_phase, float)
@@ -574,6 +582,8 @@ def grow_tree(model: SpeciesModel, envelope: Envelope, params: GrowParams | None
     if variation is not None:
         meta["envelope_variation"] = variation
     meta["allometry"] = allometry_report(g.parents, rest, radius, model.mu_deg)
+    if holton is not None:
+        meta["allometry"]["holton_turns"] = holton
     tree = Tree3D(g.parents.astype(np.int32), nodes3d.astype(np.float32), radius,
                   branching_level(g.parents).astype(np.int32), fps, p.name or f"{model.name}_{int(p.seed)}", meta)
     if not palm and p.twig_depth > 0:
