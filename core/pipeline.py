@@ -23,6 +23,7 @@ from .generate.allometry import allometry_report
 from .generate.limbs import LIMB_SOURCES, grown_limbs, limb_species
 from .generate.photo import PhotoMotion, species_for
 from .generate.photo import sway as photo_sway
+from .generate.photo_crown import CrownFill, fill_crown
 from .meta import TreeMeta
 from .params import check, param, same_as
 from .progress import ProgressFn, expected_seconds, stage_split, sub_progress
@@ -43,9 +44,11 @@ from .reconstruct.run import (
 )
 from .reconstruct.run import run as run_2d
 from .reconstruct.run import run_all as run_2d_all
+from .reconstruct.skeleton2d import Skeleton2D
 from .reconstruct.tracks import detect_corners
 from .reconstruct.video import open_video, parse_frame_range
-from .tree3d import Tree3D, image_to_plane, pipe_radii, uneven_times
+from .topology import branching_level
+from .tree3d import Tree3D, image_to_plane, pipe_radii, plane_to_image, uneven_times
 
 __all__ = ["SKELETON_KINDS", "STAGE_COSTS_3D", "Result", "Settings", "add_leaves", "build_3d", "build_shot",
            "check_settings", "clip_frames", "count_outlines", "first_frame", "run", "run_all", "share_2d", "track_video",
@@ -239,9 +242,19 @@ def build_3d(res: Result, s: Settings | None = None, name: str = "Tree",
     mo = solve_motion(lifted.nodes, sk.parents, sk.level, targets, s.motion, parts["motion"], sk.confidence)
     nodes, times = mo.nodes, uneven_times(sk.times, sk.fps)
     followed = None if photo is not None else motion_fit(mo.nodes, sk.parents, targets, sk.confidence).summary()
+    fill = None
     if photo is not None:                         # a photo: its species' sway on the traced rest pose
         model = species_for(photo, res.form)
-        nodes, times = photo_sway(model, sk.parents, mo.nodes[0], photo, sk.fps), None
+        rest = mo.nodes[0]
+        if depth is not None and res.form != "palm":     # its crown grown where it shows no branches
+            fill = fill_crown(sk.parents, rest, sk.nodes2d[0, 0], depth, res.outline.mask,
+                              tmap.tree if tmap is not None else None, int(photo.seed))
+            if fill.added:
+                sk, rest = grown_skeleton(sk, fill), fill.rest
+                if radius_px is not None:            # grown limbs as thin as the traced tips
+                    tips = np.setdiff1d(np.arange(len(radius_px)), sk.parents[:len(radius_px)])
+                    radius_px = np.concatenate([radius_px, np.full(fill.added, np.nanmin(radius_px[tips]))])
+        nodes, times = photo_sway(model, sk.parents, rest, photo, sk.fps), None
     height_px = max(float(lifted.envelope.z.max()), float(lifted.nodes[:, 2].max()), 1.0)
     scale = s.height_m / height_px if metres_per_px is None else float(metres_per_px)
     if radius_px is not None:
@@ -254,7 +267,8 @@ def build_3d(res: Result, s: Settings | None = None, name: str = "Tree",
             "mesh": {"curliness": float(s.curliness), "bark": s.bark, "seed": int(s.twigs.seed)},
             "limbs": sk.kind,                                    # traced from the video, or grown
             **({"photo": {"species": photo.species or model.name, "seconds": float(photo.seconds),
-                          "wind": float(photo.wind), "seed": int(photo.seed)}} if photo is not None else {}),
+                          "wind": float(photo.wind), "seed": int(photo.seed),
+                          **({"crown_fill": fill.meta()} if fill is not None else {})}} if photo is not None else {}),
             "depth": {"source": "learned" if depth is not None else "envelope",
                       "crown_scale": round(float(lifted.envelope.depth_scale), 4)},
             **({"motion_fit": followed} if followed is not None else {}),
@@ -287,6 +301,16 @@ def build_3d(res: Result, s: Settings | None = None, name: str = "Tree",
         if note:
             tree.meta.update({"fronds": note})
     return tree
+
+
+def grown_skeleton(sk: Skeleton2D, fill: CrownFill) -> Skeleton2D:
+    """``sk`` (one frame) with a photo's grown crown (:func:`.generate.photo_crown.fill_crown`)
+    appended: its nodes where frame 1 sees them, branching levels again, unmeasured."""
+    n = len(fill.parents)
+    xy = plane_to_image(fill.rest, sk.nodes2d[0, 0].astype(np.float64))
+    conf = None if sk.confidence is None else np.concatenate([sk.confidence, np.zeros(n - len(sk.parents))])
+    return replace(sk, parents=fill.parents.astype(sk.parents.dtype), nodes2d=xy[None].astype(np.float32),
+                   level=branching_level(fill.parents).astype(sk.level.dtype), confidence=conf)
 
 
 def build_shot(results: list[Result], s: Settings | None = None, names: list[str] | None = None,

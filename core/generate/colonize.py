@@ -14,7 +14,8 @@ come closer than ``kill`` to a point another branch has already taken, so they f
 without crossing back over each other (the generator's pair growth, :func:`.growth.grow_2d`,
 measured in a crown's picture plane, crosses itself; tests/test_limbs.py prints both).
 
-Units are whatever the caller's (the limbs use image pixels, z up). Vectorized per round.
+Units are whatever the caller's (the limbs use image pixels, z up), in 2D ``(x, z)`` or 3D
+``(x, y, z)``: the upward pull is along the last axis. Vectorized per round.
 """
 from __future__ import annotations
 
@@ -27,7 +28,7 @@ from scipy.spatial import cKDTree
 
 @dataclass
 class Colonized:
-    """``parents (N,)`` (-1 for node 0), ``pos (N, 2)`` (x, z); ``rounds`` growth rounds run;
+    """``parents (N,)`` (-1 for node 0), ``pos (N, 2)`` (x, z) or ``(N, 3)`` (x, y, z); ``rounds`` growth rounds run;
     ``stopped`` why growth ended; ``left`` attraction points never reached."""
 
     parents: np.ndarray
@@ -40,11 +41,11 @@ class Colonized:
 def colonize(start_parents: np.ndarray, start_pos: np.ndarray, growing: np.ndarray, points: np.ndarray,
              step: float, influence: float, kill: float, up: float = 0.0, budget: int = 400,
              max_rounds: int = 400, inside: Callable[[np.ndarray], np.ndarray] | None = None) -> Colonized:
-    """Grow from the tree ``start_parents (K,)``, ``start_pos (K, 2)`` (its nodes with
-    ``growing (K,)`` True may sprout; every new node may) toward ``points (M, 2)``; see the module
-    docstring for ``step`` D, ``influence``, ``kill`` and ``up`` (w_up). At most ``budget`` nodes.
-    ``inside``: ``(L, 2) → (L,)`` bool, the region; a node whose next step leaves it stops
-    (a branch does not cut across a notch of the crown)."""
+    """Grow from the tree ``start_parents (K,)``, ``start_pos (K, 2 or 3)`` (its nodes with
+    ``growing (K,)`` True may sprout; every new node may) toward ``points (M, 2 or 3)``; see the
+    module docstring for ``step`` D, ``influence``, ``kill`` and ``up`` (w_up). At most ``budget``
+    nodes. ``inside``: ``(L, 2 or 3) → (L,)`` bool, the region; a node whose next step leaves it
+    stops (a branch does not cut across a notch of the crown)."""
     par = list(np.asarray(start_parents, np.int64))
     pos = np.asarray(start_pos, np.float64).copy()
     can = np.asarray(growing, bool).copy()
@@ -74,7 +75,8 @@ def colonize(start_parents: np.ndarray, start_pos: np.ndarray, growing: np.ndarr
         pull = np.zeros_like(pos)
         np.add.at(pull, node, unit)
         growers = np.unique(node)
-        n = pull[growers] + np.array([0.0, up])
+        n = pull[growers]
+        n[:, -1] += up                          # up: the last axis (z in (x, z) and in (x, y, z))
         norm = np.linalg.norm(n, axis=1)
         keep = norm > 1e-9                      # pulled equally both ways: that node rests this round
         growers, n, norm = growers[keep], n[keep], norm[keep]
