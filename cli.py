@@ -275,6 +275,9 @@ def build_parser() -> argparse.ArgumentParser:
     v.add_argument("--exemplars", nargs="+", action="extend", metavar="IMAGE",
                    help="RGBA pictures of trees (transparent around the tree, e.g. a billboard) the variations "
                         "are made from; one is given its mirror image as a second")
+    v.add_argument("--exemplar-outlines", nargs="+", action="extend", metavar="OUTLINE",
+                   help="one per exemplar, in order: a photo's outline (polygon .json or mask image) that cuts "
+                        "the tree out of it (its pixels against the sky around it), or '-' for an RGBA exemplar")
     return p
 
 
@@ -438,7 +441,9 @@ def _variations(run: Run) -> int:
     from .core.generate.exemplars import read_exemplar
     job = run.job
     assert isinstance(job, jobs.VariationsJob)
-    exemplars = [read_exemplar(path, job.params.size) for path in job.exemplars]
+    outlines = list(job.outlines) or ["-"] * len(job.exemplars)
+    exemplars = [read_exemplar(path, job.params.size, None if ol == "-" else ol)
+                 for path, ol in zip(job.exemplars, outlines)]
     _check_out(job.out, gv.planned_files(job.params.count), run.force)
     _begin(run)
     made = gv.make_variations(exemplars, job.params, run.record.timed(_progress_printer(run.quiet)))
@@ -627,7 +632,8 @@ def record(job: jobs.Job | dict, argv: list[str]) -> JobRecord:
         settings = jobs.settings_doc(job)
         video = job.tree if isinstance(job, jobs.ExportJob) else getattr(job, "video", None)
         outline = getattr(job, "outline", None)
-    ident = (identity.files_identity(job.exemplars, "exemplars") if isinstance(job, jobs.VariationsJob)
+    ident = (identity.files_identity(list(job.exemplars) + [o for o in job.outlines if o != "-"], "exemplars")
+             if isinstance(job, jobs.VariationsJob)
              else identity.input_identity(video, outline))
     return JobRecord(list(argv), settings, identity.settings_hash(settings), __version__, input=ident)
 

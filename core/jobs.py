@@ -56,7 +56,7 @@ OPTIONS: dict[str, type] = {
     "fold_alpha": float, "candidates": int, "sigma_track": float, "sigma_shape": float, "max_step": float,
     "max_total": float, "flutter_gain": float, "max_leaf_clusters": int,
     "variations": int, "exemplars": list, "billboard": int, "envelope_variation": float,
-    "allometry": bool,
+    "allometry": bool, "exemplar_outlines": list,
 }
 #: the options that say where a job reads and writes (not its settings: not in its settings hash)
 PLACES = ("video", "outline", "out", "tree")
@@ -165,13 +165,15 @@ class ExportJob:
 @dataclass
 class VariationsJob:
     """``params.count`` new RGBA tree images made from the RGBA pictures ``exemplars``, written to
-    ``out`` (``variation_000.png``…, ``variations.json``)."""
+    ``out`` (``variation_000.png``…, ``variations.json``); an exemplar may be a photo cut out by its
+    entry in ``outlines``."""
 
     kind: ClassVar[str] = "variations"
     exemplars: tuple[str, ...]
     out: str
     params: VariationParams
     outputs: JobOutputs = field(default_factory=JobOutputs)
+    outlines: tuple[str, ...] = ()     # per exemplar: a photo's outline, or "-" (an RGBA image); () all RGBA
 
 
 Job = Union[ReconstructJob, PhotoJob, GenerateJob, ExportJob, VariationsJob]
@@ -188,9 +190,13 @@ def variations_of(o: dict) -> VariationsJob:
         if o.get(opt) is not None:
             name = "VIDEO" if opt == "video" else "--" + opt
             raise InputError(f"--variations makes tree images from --exemplars; drop {name} (run it as a job of its own)")
+    outlines = tuple(o.get("exemplar_outlines") or ())
+    if outlines and len(outlines) != len(exemplars):
+        raise InputError(f"--exemplar-outlines gives {len(outlines)} outline(s) for {len(exemplars)} exemplar(s); give "
+                         "one per exemplar, '-' for an RGBA one")
     p = VariationParams(count=o["variations"], seed=o.get("seed", VariationParams().seed))
     check(p)
-    return VariationsJob(exemplars, o.get("out", ""), p)
+    return VariationsJob(exemplars, o.get("out", ""), p, outlines=outlines)
 
 
 def check_types(flat: dict, where: str = "the job") -> dict:
@@ -303,7 +309,7 @@ def from_flat(flat: dict, where: str = "the job") -> Job:
     o = check_types(flat, where)
     if o.get("variations") is not None:
         return variations_of(o)
-    if o.get("exemplars"):
+    if o.get("exemplars") or o.get("exemplar_outlines"):
         raise InputError("--exemplars are the pictures --variations N is made from; add --variations N")
     outputs = outputs_from(o)
     out = o.get("out", "")
@@ -380,7 +386,8 @@ def to_flat(job: Job) -> dict:
     reads back into the same job, what a job file holds and what the report records."""
     flat: dict[str, Any] = {"out": job.out or None}
     if isinstance(job, VariationsJob):
-        flat.update(variations=job.params.count, exemplars=list(job.exemplars), seed=job.params.seed)
+        flat.update(variations=job.params.count, exemplars=list(job.exemplars), seed=job.params.seed,
+                    exemplar_outlines=list(job.outlines) or None)
         return flat
     flat.update(_outputs_flat(job.outputs))
     if isinstance(job, ExportJob):

@@ -52,6 +52,8 @@ def test_the_options_are_the_batch_parsers():
       "--billboard", "256"], jobs.GenerateJob),
     (["--variations", "5", "--exemplars", "a.png", "b.png", "--exemplars", "c.png", "--seed", "3", "--out", "d"],
      jobs.VariationsJob),
+    (["--variations", "2", "--exemplars", "a.jpg", "b.png", "--exemplar-outlines", "a.json", "-", "--out", "d"],
+     jobs.VariationsJob),
 ])
 def test_each_kind_from_the_line_and_back(argv, kind):
     job = jobs.from_flat(_flat(argv))

@@ -178,3 +178,38 @@ def test_bad_exemplars_one_line_exit_2(tmp_path, case):
     print(err)
     assert code == 2 and err.startswith("error: ") and len(err.strip().splitlines()) == 1
     assert "Traceback" not in err
+
+
+@pytest.mark.parametrize("seed", [280, 281])
+def test_a_photo_with_its_outline_is_an_exemplar(tmp_path, seed):
+    """A drawn tree laid on a sky and a lawn, as a photo with a polygon around it: the cut-out
+    (the trace's tree-against-background test) gives the tree's own silhouette back."""
+    rgba, _ = exemplar_tree(seed)
+    h, w = rgba.shape[:2]
+    rng = np.random.default_rng(seed)
+    sky = np.linspace(0, 1, h)[:, None, None] * np.array([60, 40, 10]) + np.array([235, 190, 150])   # BGR
+    photo = np.broadcast_to(sky, (h, w, 3)).copy() + rng.normal(0, 3, (h, w, 3))
+    ys, xs = np.nonzero(rgba[..., 3] >= 128)
+    ground = ys.max() - 5
+    photo[ground:] = np.array([60, 120, 80]) + rng.normal(0, 6, (h - ground, w, 3))     # a lawn at the foot
+    a = rgba[..., 3:] / 255.0
+    photo = (photo * (1 - a) + rgba[..., 2::-1] * a).clip(0, 255).astype(np.uint8)
+    path = str(tmp_path / "photo.jpg")
+    cv2.imwrite(path, photo, [cv2.IMWRITE_JPEG_QUALITY, 92])
+    hull = cv2.convexHull(np.stack([xs, ys], 1).astype(np.int32))[:, 0]
+    centre = hull.mean(0)
+    poly = (centre + (hull - centre) * 1.08).round().tolist()                  # a loose polygon around it
+    (tmp_path / "outline.json").write_text(json.dumps(poly))
+    from tree_from_video.core.generate.exemplars import read_exemplar
+    cut = read_exemplar(path, outline=str(tmp_path / "outline.json"))
+    true = exemplar_from_rgba(rgba, "truth")
+    a1, a2 = cut.rgba[..., 3] >= 128, true.rgba[..., 3] >= 128
+    iou = (a1 & a2).sum() / (a1 | a2).sum()
+    print(f"seed {seed}: the photo's cut-out against the tree's own alpha IoU {iou:.3f}")
+    assert iou >= 0.85 and cut.has_trunk
+    code, _, err = run("--variations", 2, "--exemplars", path, _png(tmp_path / "b.png", exemplar_tree(seed + 10)[0]),
+                       "--exemplar-outlines", tmp_path / "outline.json", "-", "--out", tmp_path / "out", "--quiet")
+    assert code == 0, err
+    code, _, err = run("--variations", 2, "--exemplars", path, "--exemplar-outlines", "a.json", "b.json",
+                       "--out", tmp_path / "out2")
+    assert code == 2 and "one per exemplar" in err

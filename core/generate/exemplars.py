@@ -83,14 +83,22 @@ class Exemplar:
         return exemplar_from_rgba(self.rgba[:, ::-1].copy(), self.name + " (mirrored)", self.size)
 
 
-def read_exemplar(path: str | os.PathLike, size: int = SIZE) -> Exemplar:
-    """The exemplar in the RGBA image ``path``; :class:`InputError` (one line) when it is not one."""
+def read_exemplar(path: str | os.PathLike, size: int = SIZE, outline: str | os.PathLike | None = None) -> Exemplar:
+    """The exemplar in the RGBA image ``path``, or in the photo ``path`` cut out by ``outline`` (a
+    polygon .json or a mask image, as a video's: :func:`photo_cutout`); :class:`InputError` (one
+    line) when it is not one."""
     path = os.fspath(path)
     if not os.path.isfile(path):
         raise InputError(f"exemplar '{path}' does not exist; give an RGBA image of a tree (PNG with transparency)")
     img = cv2.imread(path, cv2.IMREAD_UNCHANGED)
     if img is None:
         raise InputError(f"exemplar '{path}' cannot be read as an image; give an RGBA PNG of a tree")
+    if outline is not None:
+        bgr = img[..., :3] if img.ndim == 3 else cv2.cvtColor(img, cv2.COLOR_GRAY2BGR)
+        if bgr.dtype != np.uint8:
+            bgr = (bgr.astype(np.float64) * (255.0 / np.iinfo(bgr.dtype).max)).round().astype(np.uint8)
+        rgba = photo_cutout(bgr, outline, where=f"exemplar '{path}'")
+        return exemplar_from_rgba(rgba, os.path.basename(path), size, where=f"exemplar '{path}'")
     if img.ndim != 3 or img.shape[2] != 4:
         raise InputError(f"exemplar '{path}' has no alpha channel; give an RGBA image of a tree (transparent "
                          "around it), e.g. a billboard.png the project wrote")
@@ -98,6 +106,25 @@ def read_exemplar(path: str | os.PathLike, size: int = SIZE) -> Exemplar:
         img = (img.astype(np.float64) * (255.0 / np.iinfo(img.dtype).max)).round().astype(np.uint8)
     rgba = cv2.cvtColor(img, cv2.COLOR_BGRA2RGBA)
     return exemplar_from_rgba(rgba, os.path.basename(path), size, where=f"exemplar '{path}'")
+
+
+def photo_cutout(bgr: np.ndarray, outline: str | os.PathLike, where: str = "the photo") -> np.ndarray:
+    """``(H, W, 4)`` RGBA uint8 of a photo of a tree: alpha the outline's pixels that are the tree
+    against the sky and ground around it (the trace's own test: CIELAB distance to the background
+    ring just outside the outline, :func:`..reconstruct.branch_fit.tree_map`), soft: its level, ½ at
+    the trace's threshold; the whole outline when it leaves no background around it."""
+    from ..outline import load_outline
+    from ..reconstruct.branch_fit import tree_map
+    h, w = bgr.shape[:2]
+    mask = load_outline(os.fspath(outline), w, h).mask.astype(bool)
+    if not mask.any():
+        raise InputError(f"the outline of {where} holds no pixel of it; draw it around the tree in the photo")
+    tmap = tree_map(bgr, mask)
+    if tmap is None:
+        alpha = mask.astype(np.float32)
+    else:                          # soft: ½ at the trace's threshold, so a sky-tinted edge fades out
+        alpha = np.where(mask, tmap.level(), 0.0).astype(np.float32)
+    return np.dstack([cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB), np.round(alpha * 255).astype(np.uint8)])
 
 
 def exemplar_from_rgba(rgba: np.ndarray, name: str = "", size: int = SIZE, where: str = "the exemplar") -> Exemplar:
