@@ -29,6 +29,7 @@ from .core.asset.game import ENGINES, GameSettings
 from .core.detail.bark_photo import BarkPhotoParams, bark_maps, read_bark_photo, write_bark_files
 from .core.detail.branch_mesh import MeshParams
 from .core.detail.leaf_clusters import LeafParams
+from .core.detail.trunk_strip import VIDEO_BARK
 from .core.detail.twigs import TwigParams
 from .core.envelope import envelope_from_meta
 from .core.errors import Cancelled, InputError
@@ -149,7 +150,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--bark-image", action="append", metavar="PHOTO",
                    help="a close-up photo of the bark (repeat for several): the bark becomes a seamless tile "
                         "quilted from it (albedo, height, normal and roughness maps, DIR/bark_*.png), in the "
-                        "Blender outputs and every export, instead of the procedural bark")
+                        "Blender outputs and every export, instead of the procedural bark; 'video': the "
+                        "reconstructed trunk's own pixels in frame 1")
     p.add_argument("--moss", type=float, default=None,
                    help=f"moss found in the bark photo (green), {_range(B, 'moss')}: 0 removes it, 1 as "
                         f"photographed, 2 doubles its cover, crevices first (default {_default(B, 'moss'):g})")
@@ -514,7 +516,9 @@ def _reconstruct(run: Run) -> int:
         _check_out(folder, names + _bark_files(job), run.force)
     outputs = _blender_step(job)
     _begin(run)
-    _make_bark(run, photos)
+    from_video = VIDEO_BARK in job.outputs.bark_images
+    if not from_video:
+        _make_bark(run, photos)
     cb = run.record.timed(_progress_printer(run.quiet))
     results = pipeline.run_all(job.video, job.outline, settings, cb)
     info = results[0].info
@@ -524,6 +528,16 @@ def _reconstruct(run: Run) -> int:
     base = os.path.splitext(os.path.basename(job.video))[0] or "Tree"
     tree_names = [f"Tree {base}"] if n_trees == 1 else [f"Tree {base} {k + 1}" for k in range(n_trees)]
     trees = pipeline.build_shot(results, settings, tree_names, cb, photo=photo)     # one scale, each where it stands
+    if from_video:                                   # the first tree's trunk in frame 1 as a bark photo
+        strip, why = _video_bark(results[0], trees[0])
+        if strip is None:
+            w = f"--bark-image video: {why}; the bark is made from the other photos or stays procedural"
+            sys.stderr.write(f"warning: {w}\n")
+            run.record.warn(w)
+        else:
+            run.log(f"[bark] {why}")
+            photos.append(strip)
+        _make_bark(run, photos)
     for res, tree, folder in zip(results, trees, folders):
         _write_tree(run, res, tree, folder, outputs if plan is None else None, cb)
     if plan is not None:
@@ -544,10 +558,26 @@ def _read_bark(run: Run) -> list:
     """The job's bark photos read (one line for a missing or unfit one) before any work; [] without."""
     photos = []
     for path in run.job.outputs.bark_images:
+        if path == VIDEO_BARK:                    # the trunk's own pixels, once frame 1 is traced
+            continue
         if not os.path.isfile(path):
             raise InputError(f"bark photo '{path}' does not exist; give a close-up photo of the bark")
         photos.append(read_bark_photo(path))
     return photos
+
+
+def _video_bark(res, tree):
+    """``(strip or None, why)``: frame 1's trunk of ``res`` straightened (:mod:`.core.detail.trunk_strip`)."""
+    from .core.detail.trunk_strip import trunk_strip
+    from .core.reconstruct.branch_fit import tree_map
+    frame = pipeline.first_frame(res)
+    if frame is None:
+        return None, "frame 1 could not be read again"
+    sk = res.skeleton
+    n = len(sk.parents)
+    radius_px = tree.radius[:n].astype(float) / float(tree.meta.get("metres_per_px", 1.0))
+    tmap = tree_map(frame, res.outline.mask)
+    return trunk_strip(frame, sk.parents, sk.nodes2d[0], radius_px, tmap.tree if tmap is not None else None)
 
 
 def _make_bark(run: Run, photos: list) -> None:

@@ -29,6 +29,7 @@ from .asset.billboard import BILLBOARD_PX
 from .asset.billboard import FILES as BILLBOARD_FILES
 from .asset.game import GameSettings, preset
 from .detail.bark_photo import BarkPhotoParams
+from .detail.trunk_strip import VIDEO_BARK
 from .errors import InputError
 from .formats import FORMATS
 from .generate.batch import GenerateRequest, check_request
@@ -318,12 +319,18 @@ def from_flat(flat: dict, where: str = "the job") -> Job:
             raise InputError("--tree builds the outputs of a saved tree; drop the VIDEO, --outline and --generate")
         if not outputs.blender:
             raise InputError(f"--tree builds the Blender outputs; add one of {FORMAT_FLAGS} or --billboard PX")
+        if VIDEO_BARK in outputs.bark_images:
+            raise InputError("--bark-image video takes the bark from a video's trunk as it is traced; with --tree "
+                             "give a photo of bark")
         return ExportJob(o["tree"], out, outputs)
     video = o.get("video")
     if video is None:
         if o.get("generate") is None:
             raise InputError("no VIDEO given: give VIDEO --outline OUTLINE.json, or --generate N --species NAME "
                              "to grow new trees")
+        if VIDEO_BARK in outputs.bark_images:
+            raise InputError("--bark-image video takes the bark from the reconstructed video's trunk; give a photo "
+                             "of bark to grow trees without a video")
         d = Settings()
         return GenerateJob(request_of(o, False, outputs.game.loop_s), out, outputs,
                            o.get("curliness", d.curliness), o.get("bark", d.bark))

@@ -75,3 +75,33 @@ def test_a_bad_bark_photo_is_one_line(tmp_path):
         lines = [ln for ln in err.splitlines() if ln.strip()]
         assert code == 2 and len(lines) == 1 and needle in lines[0], err
         assert not out.exists()
+
+
+def test_the_trunk_in_frame_1_is_the_bark_photo(tmp_path):
+    """``--bark-image video``: the tile is made from frame 1's trunk (its mean colour within 12 of
+    the true trunk's pixels in frame 1, CIELAB ΔE); without a video it is refused in one line."""
+    from samples import load_truth
+    from tree_from_video.core.topology import trunk_chain
+    out = tmp_path / "own"
+    code, err = run(VIDEO, "--outline", OUTLINE, "--out", out, *QUICK, "--bark-image", "video")
+    assert code == 0, err
+    assert json.loads((out / "bark.json").read_text())["photos"] == ["video"]
+    tile = cv2.imread(str(out / "bark_albedo.png"))
+    truth = load_truth(committed("broad"))
+    cap = cv2.VideoCapture(VIDEO)
+    ok, frame = cap.read()
+    cap.release()
+    assert ok
+    chain = trunk_chain(truth["parents"])
+    pts = truth["nodes2d_image"][0][chain]
+    mask = np.zeros(frame.shape[:2], np.uint8)
+    for a, b, r in zip(pts[:-1], pts[1:], truth["radius"][chain]):
+        cv2.line(mask, tuple(np.round(a).astype(int)), tuple(np.round(b).astype(int)), 1,
+                 max(int(round(0.7 * 2 * float(r))), 1))
+    lab = lambda img: cv2.cvtColor(img.astype(np.uint8)[None], cv2.COLOR_BGR2LAB)[0].astype(float)  # noqa: E731
+    want = lab(frame[mask > 0].mean(0, keepdims=True))[0]
+    got = lab(tile.reshape(-1, 3).mean(0, keepdims=True))[0]
+    print(f"trunk's mean Lab {np.round(want, 1)}, the tile's {np.round(got, 1)}: ΔE {np.linalg.norm(want - got):.1f}")
+    assert np.linalg.norm(want - got) <= 12.0
+    code, err = run("--generate", "1", "--species", "broad", "--out", tmp_path / "gen", "--bark-image", "video")
+    assert code == 2 and "--bark-image video" in err and len(err.strip().splitlines()) == 1
