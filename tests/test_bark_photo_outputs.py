@@ -80,8 +80,9 @@ def test_a_bad_bark_photo_is_one_line(tmp_path):
 def test_the_trunk_in_frame_1_is_the_bark_photo(tmp_path):
     """``--bark-image video``: the tile is made from frame 1's trunk (its mean colour within 12 of
     the true trunk's pixels in frame 1, CIELAB ΔE); without a video it is refused in one line."""
-    from samples import load_truth
     from tree_from_video.core.topology import trunk_chain
+
+    from samples import load_truth
     out = tmp_path / "own"
     code, err = run(VIDEO, "--outline", OUTLINE, "--out", out, *QUICK, "--bark-image", "video")
     assert code == 0, err
