@@ -26,7 +26,7 @@ from types import SimpleNamespace
 from . import __version__
 from .core import jobs, pipeline
 from .core.asset.game import ENGINES, GameSettings
-from .core.detail.bark_photo import BarkPhotoParams, bark_maps, read_bark_photo, write_bark_files
+from .core.detail.bark_photo import BarkPhotoParams, bark_maps, read_bark_files, read_bark_photo, write_bark_files
 from .core.detail.branch_mesh import MeshParams
 from .core.detail.leaf_clusters import LeafParams
 from .core.detail.trunk_strip import VIDEO_BARK
@@ -430,8 +430,12 @@ def _generate_only(run: Run) -> int:
     photos = _read_bark(run)
     _check_out(job.out, gb.planned_files(job.request, job.outputs.files) + _bark_files(job), run.force)
     outputs = _blender_step(job)
+    own = read_bark_files(plan.model.bark_dir) if not photos and plan.model.bark_dir else None   # the species' bark
     _begin(run)
     _make_bark(run, photos)
+    if own is not None:
+        run.bark = own
+        run.log(f"[bark] the species' bark from {plan.model.bark_dir}")
     return _run_generation(run, plan, outputs, (job.curliness, job.bark))
 
 
@@ -461,6 +465,8 @@ def _generate_from_tree(run: Run, plan, tree, name, outputs) -> int:
     grow the trees (default envelope: the reconstruction's)."""
     plan.model = species.fit_species(tree, name)              # its branches: the twigs left out
     plan.species_label = os.path.join(run.out, gb.SPECIES_FILE)
+    if run.bark is not None:                                   # its bark maps beside it: trees grown from it take them
+        plan.model.bark_dir = "."
     species.save_species(plan.species_label, plan.model)
     run.log(f"[species] {plan.species_label}")
     if plan.envelope is None:

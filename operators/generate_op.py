@@ -21,7 +21,7 @@ from ..core.loop import maybe_loop
 from ..core.progress import sub_progress
 from . import jobs
 from .scene import stored, timing, trees
-from .scene.bark_photos import panel_bark
+from .scene.bark_photos import species_bark
 from .scene.build import build_tree
 from .scene.checks import missing_file, refuse
 from .scene.forest import ForestBuild
@@ -224,7 +224,7 @@ class TREE_OT_generate(jobs.JobOperator, bpy.types.Operator):
             game = game_settings(context.scene.tree_video)
             built = build_tree(context, tree, name, curliness=context.scene.tree_video.curliness,
                                bark=context.scene.tree_video.bark, keep_view=True,
-                               bark_maps=panel_bark(context.scene.tree_video), **build_kwargs(game))
+                               bark_maps=species_bark(context.scene.tree_video, model), **build_kwargs(game))
             keep_engine_files(built, tree, game)
         except InputError as exc:
             self.report({"ERROR"}, str(exc))
@@ -279,7 +279,7 @@ class TREE_OT_generate_forest(jobs.JobOperator, bpy.types.Operator):
     def done(self, context, result):
         props = context.scene.tree_video
         try:
-            bark_maps = panel_bark(props)
+            bark_maps = species_bark(props, result[0])
         except InputError as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}

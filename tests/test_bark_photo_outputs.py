@@ -106,3 +106,31 @@ def test_the_trunk_in_frame_1_is_the_bark_photo(tmp_path):
     assert np.linalg.norm(want - got) <= 12.0
     code, err = run("--generate", "1", "--species", "broad", "--out", tmp_path / "gen", "--bark-image", "video")
     assert code == 2 and "--bark-image video" in err and len(err.strip().splitlines()) == 1
+
+
+def test_a_species_keeps_its_bark(tmp_path):
+    """``VIDEO --generate --bark-image`` writes species.json with its bark beside it; trees grown
+    later from that file (no --bark-image) carry that bark in their GLB; its maps gone: one line."""
+    photo, _, _ = bark_photo(9)
+    path = tmp_path / "bark.jpg"
+    cv2.imwrite(str(path), photo)
+    src = tmp_path / "src"
+    code, err = run(VIDEO, "--outline", OUTLINE, "--out", src, *QUICK, "--bark-image", path, "--generate", "1",
+                    "--seconds", "1", "--nodes", "80")
+    assert code == 0, err
+    doc = json.loads((src / "species.json").read_text())
+    assert doc["bark"] == {"dir": "."}
+    out = tmp_path / "grown"
+    code, err = run("--generate", "1", "--species", src / "species.json", "--seconds", "1", "--nodes", "80",
+                    "--no-leaves", "--gltf", "--out", out, "--quiet")
+    assert code == 0, err
+    glb, binary = read_glb(out / "tree_000" / "tree.glb")
+    bark = next(m for m in glb["materials"] if "Bark" in m["name"])
+    albedo = glb_image(glb, binary, glb["textures"][bark["pbrMetallicRoughness"]["baseColorTexture"]["index"]]["source"])
+    tile = cv2.imread(str(src / "bark_albedo.png"))
+    print(f"grown tree's bark mean {albedo.reshape(-1, 3).mean(0).round(1)}, "
+          f"the species' tile {tile.reshape(-1, 3).mean(0).round(1)}")
+    assert np.abs(albedo.reshape(-1, 3).mean(0) - tile.reshape(-1, 3).mean(0)).max() < 4.0
+    os.unlink(src / "bark_normal.png")
+    code, err = run("--generate", "1", "--species", src / "species.json", "--out", tmp_path / "bad")
+    assert code == 2 and "bark_normal.png" in err and len(err.strip().splitlines()) == 1

@@ -418,3 +418,30 @@ def write_bark_files(maps: BarkMaps, folder: str, photos: list[str]) -> list[str
         atomic_write_bytes(path, data[name])
         paths.append(path)
     return paths
+
+
+def read_bark_files(folder: str) -> BarkMaps:
+    """The tile :func:`write_bark_files` wrote in ``folder``, read back; :class:`InputError` naming
+    a missing or unreadable map."""
+    from ..fileio import read_json
+    from .bark_texture import BarkTextures
+
+    def img(name: str, flags: int) -> np.ndarray:
+        path = os.path.join(folder, name)
+        a = cv2.imread(path, flags) if os.path.isfile(path) else None
+        if a is None:
+            raise InputError(f"the bark map '{path}' is missing or unreadable; write the bark again "
+                             "(--bark-image) or drop the species' bark")
+        return a
+    albedo = cv2.cvtColor(img("bark_albedo.png", cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)
+    normal = cv2.cvtColor(img("bark_normal.png", cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)
+    rough = img("bark_roughness.png", cv2.IMREAD_GRAYSCALE).astype(np.float64) / 255.0
+    height = img("bark_height.png", cv2.IMREAD_UNCHANGED).astype(np.float64) / 65535.0
+    doc = read_json(os.path.join(folder, "bark.json"), f"bark.json in '{folder}'", "write the bark again")
+    try:
+        moss = (float(doc["moss_cover"]["photographed"]), float(doc["moss_cover"]["tile"]))
+        lichen = (float(doc["lichen_cover"]["photographed"]), float(doc["lichen_cover"]["tile"]))
+        scale = float(doc["tile_cm"])
+    except (KeyError, TypeError, ValueError):
+        raise InputError(f"bark.json in '{folder}' is incomplete; write the bark again") from None
+    return BarkMaps(BarkTextures(albedo, normal, height), rough, moss, lichen, scale, 0.0)

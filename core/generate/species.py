@@ -96,7 +96,9 @@ class SpeciesModel:
     source's trunk-base and median tip radius as shares of its height (None in older files:
     generated trees then take :class:`..growth.GrowParams`' defaults); ``contours`` the sources'
     crown contours (:func:`.crown_space.envelope_contour`: ``(N_CONTOUR, 2)`` (x, z) over the height,
-    pinned; none in files fitted before them), what ``--envelope-variation`` mixes."""
+    pinned; none in files fitted before them), what ``--envelope-variation`` mixes; ``bark_dir`` the
+    folder of the source's bark from photos (:func:`..detail.bark_photo.write_bark_files`; the file
+    keeps it relative to itself), which trees grown from it take; None: the procedural bark."""
 
     name: str
     angles: np.ndarray
@@ -123,6 +125,7 @@ class SpeciesModel:
     form: str = "broadleaf"               # forms.TREE_FORMS; files before forms: from ``conifer``
     palm: dict | None = None              # a palm's crown (palm.palm_info); None for other forms
     contours: list = field(default_factory=list)   # the sources' crown contours (crown_space), (200, 2) each
+    bark_dir: str | None = None           # the folder of the source's bark maps (bark_photo), None: procedural
 
     def to_json(self) -> dict:
         """JSON-able dict (rounded, human-readable)."""
@@ -164,6 +167,7 @@ class SpeciesModel:
                if self.leaves else {}),
             **({"crown_contours": [np.asarray(c, float).round(4).tolist() for c in self.contours]}
                if self.contours else {}),
+            **({"bark": {"dir": self.bark_dir}} if self.bark_dir else {}),
         }
 
     @classmethod
@@ -210,7 +214,8 @@ class SpeciesModel:
                         ver, list(d.get("fallbacks", [])), _leaf_info(d.get("leaves")),
                         None if src.get("sway_excursion") is None else float(src["sway_excursion"]),
                         _widths(sh), form_of(bool(d.get("conifer", False)), d.get("form")),
-                        _palm(d.get("palm")), _contours(d.get("crown_contours")))
+                        _palm(d.get("palm")), _contours(d.get("crown_contours")),
+                        str(d["bark"]["dir"]) if isinstance(d.get("bark"), dict) and d["bark"].get("dir") else None)
         except (KeyError, TypeError, ValueError) as exc:
             raise InputError(f"{where} is incomplete or damaged ({exc.__class__.__name__}: {exc}); "
                              "fit the species again or pick another file") from None
@@ -470,7 +475,10 @@ def load_species(path: str | os.PathLike) -> SpeciesModel:
                          "or fit one from a reconstructed tree")
     from ..fileio import read_json
     data = read_json(path, f"species file '{path}'", "pick a .json written by Fit Species")
-    return SpeciesModel.from_json(data, f"species file '{path}'")
+    model = SpeciesModel.from_json(data, f"species file '{path}'")
+    if model.bark_dir is not None:                 # kept relative to the file: where it is now
+        model.bark_dir = os.path.normpath(os.path.join(os.path.dirname(os.path.abspath(path)), model.bark_dir))
+    return model
 
 
 SPECIES_DIR = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))), "species")

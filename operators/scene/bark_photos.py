@@ -29,3 +29,13 @@ def panel_bark(props) -> BarkMaps | None:
         _CACHE.clear()
         _CACHE[key] = bark_maps([read_bark_photo(path)], params)
     return _CACHE[key]
+
+
+def species_bark(props, model) -> BarkMaps | None:
+    """The panel's bark for trees of ``model``: its *Bark Image*'s (:func:`panel_bark`), else the
+    species' own bark from photos (``model.bark_dir``), else None (procedural)."""
+    maps = panel_bark(props)
+    if maps is None and model is not None and getattr(model, "bark_dir", None):
+        from ...core.detail.bark_photo import read_bark_files
+        maps = read_bark_files(model.bark_dir)
+    return maps
