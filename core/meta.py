@@ -44,6 +44,7 @@ class TreeMeta(TypedDict, total=False):
     loop: dict[str, Any]
     periodic: dict[str, Any]
     envelope_variation: dict[str, Any]
+    tree_map: dict[str, Any]
     allometry: dict[str, Any]
     base_px: list[float]
     video_size: list[int]
@@ -112,6 +113,9 @@ KEYS: dict[str, Key] = {
                      "branch_angle_deg, species_mu_deg}", ("pipeline.build_3d", "growth.grow_tree"),
                      "the pipe model's exponent and Holton's branching angles measured per fork "
                      "(generate/allometry.py; before twigs)"),
+    "tree_map": Key("{share, used}", ("pipeline.build_3d",),
+                    "frame 1's tree pixels against the background around the outline: the share of the "
+                    "outline that differs, and whether it was used (not under pipeline.MIN_TREE_SHARE)"),
     "envelope_variation": Key("{variation, weights, width_over_height, leaf_colour}", ("growth.grow_tree",),
                               "the tree's own crown and leaf colour (--envelope-variation, crown_space.py): "
                               "V, the contour space's weights, width over height source -> varied, the sRGB colour"),
