@@ -55,7 +55,9 @@ def main() -> int:
         warn = [ln for ln in run.stderr.splitlines() if ln.startswith("warning:")]
         leaf = tree.meta["leaf_colour"]["colour"]
         hue = cv2.cvtColor(np.uint8([[np.round(np.asarray(leaf)[::-1] * 255)]]), cv2.COLOR_BGR2HSV)[0, 0, 0] * 2
-        rows.append((name, tree.meta["form"], tree.n_nodes, tree.meta.get("tree_map", {}).get("share", "used"),
+        tm = tree.meta.get("tree_map", {})
+        rows.append((name, tree.meta["form"], tree.n_nodes,
+                     f"{tm.get('share', float('nan')):.3f} ({'used' if tm.get('used') else 'not used'})",
                      f"{leaf[0]:.2f}, {leaf[1]:.2f}, {leaf[2]:.2f} (hue {hue}°)", len(warn)))
         img, prev = cv2.imread(photo), cv2.imread(os.path.join(out, "preview.png"))
         h = 360
@@ -64,7 +66,7 @@ def main() -> int:
         cv2.putText(row, p["credit"].split(", https")[0], (6, h - 8), cv2.FONT_HERSHEY_SIMPLEX, 0.4,
                     (255, 255, 255), 1, cv2.LINE_AA)
         tiles.append(row)
-    print("| photo | form traced | nodes | tree map (share when not used) | leaf colour sRGB | warnings |")
+    print("| photo | form traced | nodes | tree map: share told apart | leaf colour sRGB | warnings |")
     print("|---|---|---|---|---|---|")
     for r in rows:
         print("| " + " | ".join(str(x) for x in r) + " |")

@@ -200,7 +200,7 @@ def share_2d(n_frames: int) -> float:
 
 #: frame 1's tree map is not used when under this share of the outline differs from the background
 #: around it (other trees behind the tree: a real photo's 1.4 %; the samples 38-76 %, a sparse real
-#: crown against the sky 21 %)
+#: crown against the sky 20 %)
 MIN_TREE_SHARE = 0.05
 
 
@@ -234,8 +234,10 @@ def build_3d(res: Result, s: Settings | None = None, name: str = "Tree",
     tmap_share = None
     if frame is not None:               # frame 1 against its background: branch widths, foreground
         tmap = tree_map(frame, res.outline.mask)
-        if tmap is not None and tmap.share < MIN_TREE_SHARE:   # the background looks like the tree: no map
-            tmap_share, tmap = tmap.share, None
+        if tmap is not None:
+            tmap_share = (tmap.share, tmap.share >= MIN_TREE_SHARE)
+            if not tmap_share[1]:                   # the background looks like the tree: no map
+                tmap = None
         if tmap is not None and s.fit_branches:
             fit = measure_branches(sk.parents, sk.nodes2d[0], tmap)
             if sk.kind == "grown":            # the frame shows the trunk, not limbs grown behind the leaves
@@ -290,7 +292,7 @@ def build_3d(res: Result, s: Settings | None = None, name: str = "Tree",
             "base_px": [float(base[0]), float(base[1])],          # trunk base in frame 1 (x, y) px
             "video_size": [int(res.outline.mask.shape[1]), int(res.outline.mask.shape[0])]}
     if tmap_share is not None:
-        meta["tree_map"] = {"share": round(float(tmap_share), 4), "used": False}
+        meta["tree_map"] = {"share": round(float(tmap_share[0]), 4), "used": bool(tmap_share[1])}
     tree = Tree3D(sk.parents.copy(), (nodes * scale).astype(np.float32), radius, sk.level.copy(),
                   sk.fps, name, meta, times=times)
     if fit is not None:
