@@ -30,6 +30,9 @@ from ..topology import trunk_chain
 from ..tree3d import plane_to_image
 from .colonize import colonize
 
+# the step's bounds, the points' reach and kill distance: as a video's grown limbs (limbs.py)
+from .limbs import INFLUENCE_FRAC, KILL_STEPS, STEP_FRAC
+
 #: a crown pixel this far (share of the height) from every traced branch is a gap
 GAP_FRAC = 0.08
 #: under this share of the crown in gaps nothing is grown
@@ -38,11 +41,6 @@ MIN_GAP = 0.05
 POINTS = 800
 #: the half-depth of the crown a point is drawn in is at least this share of the height
 MIN_HALF = 0.02
-#: the growth step is the skeleton's median bone within these shares of the height
-STEP_FRAC = (0.02, 0.04)
-#: a point pulls nodes within this share of the height, and is taken within this many steps
-INFLUENCE_FRAC = 0.12
-KILL_STEPS = 1.5
 #: upward pull (w_up of the colonization)
 UP = 0.2
 #: a grown node may lie this share of the height beyond the predicted reach
