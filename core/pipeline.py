@@ -204,6 +204,16 @@ def share_2d(n_frames: int) -> float:
 MIN_TREE_SHARE = 0.05
 
 
+def trusted_tree_map(frame: np.ndarray, mask: np.ndarray):
+    """``(tree map or None, share or None)``: frame 1's tree map (:func:`.reconstruct.branch_fit.tree_map`)
+    when at least :data:`MIN_TREE_SHARE` of the outline differs from what lies around it, else None
+    (the background looks like the tree); ``share`` what it told apart (None without a map)."""
+    tmap = tree_map(frame, mask)
+    if tmap is None:
+        return None, None
+    return (tmap if tmap.share >= MIN_TREE_SHARE else None), tmap.share
+
+
 def tree_warnings(res: Result, tree: Tree3D) -> list[str]:
     """The run's warnings, and the 3D motion's when it strays from the measured 2D motion
     (``meta["motion_fit"]``, :func:`.reconstruct.motion.fit_warning`): what the batch run and the
@@ -230,14 +240,9 @@ def build_3d(res: Result, s: Settings | None = None, name: str = "Tree",
     sk = res.skeleton
     parts = stage_split(progress, expected_seconds(STAGE_COSTS_3D, sk.nodes2d.shape[0]))
     frame = first_frame(res)
-    fit = radius_px = tmap = None
-    tmap_share = None
+    fit = radius_px = tmap = tmap_share = None
     if frame is not None:               # frame 1 against its background: branch widths, foreground
-        tmap = tree_map(frame, res.outline.mask)
-        if tmap is not None:
-            tmap_share = (tmap.share, tmap.share >= MIN_TREE_SHARE)
-            if not tmap_share[1]:                   # the background looks like the tree: no map
-                tmap = None
+        tmap, tmap_share = trusted_tree_map(frame, res.outline.mask)
         if tmap is not None and s.fit_branches:
             fit = measure_branches(sk.parents, sk.nodes2d[0], tmap)
             if sk.kind == "grown":            # the frame shows the trunk, not limbs grown behind the leaves
@@ -292,7 +297,7 @@ def build_3d(res: Result, s: Settings | None = None, name: str = "Tree",
             "base_px": [float(base[0]), float(base[1])],          # trunk base in frame 1 (x, y) px
             "video_size": [int(res.outline.mask.shape[1]), int(res.outline.mask.shape[0])]}
     if tmap_share is not None:
-        meta["tree_map"] = {"share": round(float(tmap_share[0]), 4), "used": bool(tmap_share[1])}
+        meta["tree_map"] = {"share": round(float(tmap_share), 4), "used": tmap is not None}
     tree = Tree3D(sk.parents.copy(), (nodes * scale).astype(np.float32), radius, sk.level.copy(),
                   sk.fps, name, meta, times=times)
     if fit is not None:
