@@ -57,8 +57,9 @@ from ..reconstruct.skeleton2d import Skeleton2D
 from ..topology import branching_level
 from ..tree3d import Tree3D, pipe_radii
 from .allometry import allometry_report, holton_pose
+from .crown_space import contour_space, varied_envelope, varied_leaf_colour
 from .envelopes import RASTER_ROWS, Region2D, envelope_meta, region_of
-from .species import SpeciesModel, sway_excursion
+from .species import SpeciesModel, library_contours, sway_excursion
 from .sway import forward_kinematics, sample_rotations
 from .wind import audio_envelope, gain_curve
 
@@ -528,9 +529,7 @@ def grow_tree(model: SpeciesModel, envelope: Envelope, params: GrowParams | None
     variation = holton = None
     leaves_info = model.leaves
     if p.envelope_variation > 0:                   # its own crown and leaf colour (crown_space)
-        from .crown_space import contour_space, varied_envelope, varied_leaf_colour
         rng_var = np.random.default_rng([int(p.seed) & 0xFFFFFFFF, 0xE17])
-        from .species import library_contours
         space = contour_space(model.contours, library_contours())
         env, variation = varied_envelope(env, space, float(p.envelope_variation), rng_var)
         leaves_info, variation["leaf_colour"] = varied_leaf_colour(model.leaves, float(p.envelope_variation), rng_var)
