@@ -21,7 +21,7 @@ import numpy as np
 
 from ..envelope import Envelope
 from .envelopes import envelope_from_polygon, envelope_polygon, rasterize
-from .exemplars import crown_baseline, mirror_pinned, oriented_contour, pins, resample_pinned
+from .exemplars import mirror_pinned, pinned_contour
 
 #: points of an envelope's contour: B→R, R→L, L→B (the exemplars' 200 / 1,600 / 200, a tenth)
 COUNTS = (20, 160, 20)
@@ -38,10 +38,7 @@ def envelope_contour(env: Envelope) -> np.ndarray:
     (trunk base at the origin, z up; module docstring)."""
     poly = envelope_polygon(env)
     mask, s, base = rasterize([poly], ROWS)
-    baseline, trunk = crown_baseline(mask)
-    c = oriented_contour(mask)
-    b, r, l_ = pins(c, baseline if trunk.any() else None)
-    px = resample_pinned(c, b, r, l_, COUNTS)
+    px = pinned_contour(mask, COUNTS)[0]
     xz = np.stack([(px[:, 0] - base[0]) * s, (base[1] - px[:, 1]) * s], 1)
     height = float(max(np.ptp(xz[:, 1]), 1e-9))
     xz[:, 1] -= xz[:, 1].min()

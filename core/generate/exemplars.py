@@ -136,10 +136,7 @@ def exemplar_from_rgba(rgba: np.ndarray, name: str = "", size: int = SIZE, where
         raise InputError(f"{where} has no transparent pixels; give an RGBA image whose alpha is 0 around the tree")
     norm = normalize(rgba, size)
     mask = norm[..., 3] >= ALPHA_T
-    baseline, trunk = crown_baseline(mask)
-    contour = oriented_contour(mask)
-    b, r, l_ = pins(contour, baseline if trunk.any() else None)
-    res = resample_pinned(contour, b, r, l_)
+    res, baseline, trunk = pinned_contour(mask)
     return Exemplar(norm, trunk, res, simplified(res, size), baseline, name)
 
 
@@ -221,6 +218,16 @@ def pins(contour: np.ndarray, baseline: int | None) -> tuple[int, int, int]:
     back = (b - np.arange(k)) % k
     down = np.nonzero(contour[back, 1] <= baseline)[0]
     return b, r, int(back[down[0]])
+
+
+def pinned_contour(mask: np.ndarray, counts: tuple[int, int, int] = (TRUNK_POINTS, CROWN_POINTS, TRUNK_POINTS)
+                   ) -> tuple[np.ndarray, int, np.ndarray]:
+    """``(contour (sum(counts), 2) px, baseline row, trunk (H, W) bool)`` of a tree mask: steps 2–5
+    of the module docstring (crown and trunk, the oriented contour, its pins, resampled to ``counts``)."""
+    baseline, trunk = crown_baseline(mask)
+    contour = oriented_contour(mask)
+    b, r, l_ = pins(contour, baseline if trunk.any() else None)
+    return resample_pinned(contour, b, r, l_, counts), baseline, trunk
 
 
 def resample_polyline(pts: np.ndarray, n: int) -> np.ndarray:
