@@ -93,17 +93,15 @@ def read_exemplar(path: str | os.PathLike, size: int = SIZE, outline: str | os.P
     img = cv2.imread(path, cv2.IMREAD_UNCHANGED)
     if img is None:
         raise InputError(f"exemplar '{path}' cannot be read as an image; give an RGBA PNG of a tree")
+    if img.dtype != np.uint8:                       # 16-bit PNG/TIFF: to 8 bits once, for either kind
+        img = (img.astype(np.float64) * (255.0 / np.iinfo(img.dtype).max)).round().astype(np.uint8)
     if outline is not None:
         bgr = img[..., :3] if img.ndim == 3 else cv2.cvtColor(img, cv2.COLOR_GRAY2BGR)
-        if bgr.dtype != np.uint8:
-            bgr = (bgr.astype(np.float64) * (255.0 / np.iinfo(bgr.dtype).max)).round().astype(np.uint8)
         rgba = photo_cutout(bgr, outline, where=f"exemplar '{path}'")
         return exemplar_from_rgba(rgba, os.path.basename(path), size, where=f"exemplar '{path}'")
     if img.ndim != 3 or img.shape[2] != 4:
         raise InputError(f"exemplar '{path}' has no alpha channel; give an RGBA image of a tree (transparent "
                          "around it), e.g. a billboard.png the project wrote")
-    if img.dtype != np.uint8:
-        img = (img.astype(np.float64) * (255.0 / np.iinfo(img.dtype).max)).round().astype(np.uint8)
     rgba = cv2.cvtColor(img, cv2.COLOR_BGRA2RGBA)
     return exemplar_from_rgba(rgba, os.path.basename(path), size, where=f"exemplar '{path}'")
 
