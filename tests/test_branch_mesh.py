@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from tree_from_video.core import bones
+from tree_from_video.core.asset.meshes import branch_arrays
 from tree_from_video.core.detail import branch_mesh as bm
 from tree_from_video.core.detail.shapes import BARK_PRESETS
 from tree_from_video.core.errors import InputError
@@ -214,18 +215,18 @@ def test_built_mesh_counts_weights_and_closure(tree):
     ob = res["mesh"]
     B, K, S = len(tree.edges()), bm.CURLY_RINGS, 8
     me = ob.data
-    assert len(me.vertices) == K * S * B and len(me.polygons) == ((K - 1) * S + 2) * B
+    ref = branch_arrays(tree, _rest(res["armature"], tree), bm.MeshParams(curliness=0.6, bark="rough"))
+    assert len(me.vertices) == K * S * B and len(me.polygons) == len(ref.loop_total)     # joined forks
     group, weight = _weights(ob)
     assert (group >= 0).all() and (weight == 1.0).all()                        # every vertex weighted
     names = [g.name for g in ob.vertex_groups]
     assert names == bones.bone_names(tree.parents)
     np.testing.assert_array_equal(group, np.repeat(np.arange(B), K * S))       # each ring to its bone
-    co = assert_closed_tubes(me, K * S)
-    ref = bm.tube_arrays(tree.nodes3d[0], tree.parents, _rest(res["armature"], tree),
-                         *[np.maximum(r, 1e-4 * float(np.ptp(tree.nodes3d[0], axis=0).max()))
-                           for r in bm.branch_radii(tree.parents, tree.radius)],
-                         8, curliness=0.6, bark="rough")
-    np.testing.assert_allclose(co.reshape(-1, 3), ref["co"], atol=1e-5)
+    co = assert_closed_tubes(me)
+    np.testing.assert_allclose(co.reshape(-1, 3), ref.co, atol=1e-5)
+    loop_vert = np.empty(len(me.loops), np.int32)
+    me.loops.foreach_get("vertex_index", loop_vert)
+    np.testing.assert_array_equal(loop_vert, ref.loop_vert)
 
 
 def _rest(rig, tree):

@@ -37,16 +37,23 @@ def silhouette(level: lod.Lod, lo: np.ndarray, span: float, px: int, ss: int = 4
     rasterised at ``ss``× and averaged down (as an engine's multisampling shows a thin twig)."""
     px, out = px * ss, px
     polys = []
-    if level.branches is not None:
+    if level.branches is not None:                     # every polygon as a fan of triangles
         b = level.branches
-        quads = b.loop_total == 4
-        polys.append(b.co[b.loop_vert[b.loop_start[quads][:, None] + np.arange(4)]][..., [0, 2]])
+        n = b.loop_total - 2
+        face = np.repeat(np.arange(len(n)), n)
+        k = np.arange(len(face)) - np.repeat(np.cumsum(n) - n, n)
+        s = b.loop_start[face]
+        tri = np.stack([b.loop_vert[s], b.loop_vert[s + k + 1], b.loop_vert[s + k + 2]], axis=1)
+        polys.append(b.co[tri][..., [0, 2]])
     if level.leaves is not None:
         polys.append(level.leaves.co[:, [0, 2]].reshape(-1, 4, 2))
-    P = (np.concatenate(polys) - lo) / span * (px - 1)
+    P = (np.concatenate([q.reshape(-1, 2) for q in polys]) - lo) / span * (px - 1)
     P[..., 1] = px - 1 - P[..., 1]
     img = np.zeros((px, px), np.uint8)
-    for poly in np.round(P * 16).astype(np.int32):     # one at a time: fillPoly's even-odd rule cancels overlaps
+    P = np.round(P * 16).astype(np.int32)
+    sizes = [q.shape[1] for q in polys for _ in range(len(q))]
+    split = np.split(P, np.cumsum(sizes)[:-1])
+    for poly in split:                                   # one at a time: fillPoly's even-odd rule cancels overlaps
         cv2.fillConvexPoly(img, poly, 1, shift=4)
     return img.reshape(out, ss, out, ss).mean(axis=(1, 3))
 

@@ -211,10 +211,12 @@ def test_evaluated_mesh_follows_the_bones(tree):
 
 def test_mesh_is_closed_with_outward_normals(tree):
     me = build.build_tree(bpy.context, tree, "Tree")["mesh"].data
-    assert_closed_tubes(me, 16)
+    assert_closed_tubes(me)
     uv = np.empty(len(me.loops) * 2, np.float32)
     me.uv_layers["UVMap"].data.foreach_get("uv", uv)
-    assert np.isfinite(uv).all() and 0 <= uv[0::2].min() and uv[0::2].max() <= 1
+    # u goes round a tube once (0..1); a joined fork's face across the seam goes on past 1 (the bark
+    # tile repeats), never by a whole turn
+    assert np.isfinite(uv).all() and 0 <= uv[0::2].min() and uv[0::2].max() < 1.5
 
 
 # ----------------------------------------------------------------------------- all or nothing

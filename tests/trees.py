@@ -99,10 +99,12 @@ def expected(tree: Tree3D, frame: int) -> tuple[np.ndarray, np.ndarray, np.ndarr
     return p[edges[:, 0]], p[edges[:, 1]], d / np.linalg.norm(d, axis=1, keepdims=True)
 
 
-def assert_closed_tubes(me, verts_per_tube: int) -> np.ndarray:
-    """Every edge of the mesh ``me`` has two faces (closed), and every tube (``verts_per_tube``
-    consecutive vertices) encloses a positive volume (normals point out). Returns the vertices
-    ``(V, 3)``."""
+def assert_closed_tubes(me) -> np.ndarray:
+    """Every edge of the mesh ``me`` has two faces (closed), and every connected piece (a tree's
+    joined tubes, or a tube of its own) encloses a positive volume (normals point out). Returns the
+    vertices ``(V, 3)``."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
     edge_index = np.empty(len(me.loops), np.int32)
     me.loops.foreach_get("edge_index", edge_index)
     assert (np.bincount(edge_index, minlength=len(me.edges)) == 2).all()     # every edge has 2 faces
@@ -111,9 +113,15 @@ def assert_closed_tubes(me, verts_per_tube: int) -> np.ndarray:
     me.loop_triangles.foreach_get("vertices", tri)
     co = np.empty(len(me.vertices) * 3, np.float32)
     me.vertices.foreach_get("co", co)
+    ev = np.empty(len(me.edges) * 2, np.int32)
+    me.edges.foreach_get("vertices", ev)
+    ev = ev.reshape(-1, 2)
+    V = len(me.vertices)
+    _, piece = connected_components(coo_matrix((np.ones(len(ev)), (ev[:, 0], ev[:, 1])), shape=(V, V)), directed=False)
     a, b, c = co.reshape(-1, 3)[tri.reshape(-1, 3)].astype(np.float64).transpose(1, 0, 2)
-    vol = np.bincount(tri.reshape(-1, 3)[:, 0] // verts_per_tube, np.einsum("ij,ij->i", a, np.cross(b, c)) / 6)
-    assert (vol > 0).all(), "a tube is inside out"
+    vol = np.bincount(piece[tri.reshape(-1, 3)[:, 0]], np.einsum("ij,ij->i", a, np.cross(b, c)) / 6)
+    used = np.unique(piece[tri])
+    assert (vol[used] > 0).all(), "a piece is inside out"
     return co.reshape(-1, 3)
 
 

@@ -14,7 +14,9 @@ How a level meets its share ``s`` of LOD0's triangles ``T₀ = T_b + T_l`` (bran
   cards, spread over its template (a frond keeps whole leaflet pairs along its midrib), each kept
   card scaled by ``√(C/m)`` about its stem (at most ×2.5) so the crown keeps its cover.
 
-Every level's vertices keep their bones (the LODs share one rig). LOD0's cards keep their flap;
+Every level's vertices keep their bones (the LODs share one rig). LOD0's forks join into one
+surface (:mod:`core.detail.forks`); the lower levels mix two tube settings bone by bone, so their
+tubes overlap at the forks as game LODs usually do, with the joined forks' radii. LOD0's cards keep their flap;
 lower levels carry none (a morph target a game pays for on every level; engines flutter leaves in
 the shader).
 """
@@ -188,7 +190,7 @@ def level_tubes(tree: Tree3D, rest: np.ndarray, look: Look, role: np.ndarray, th
     the sparsest setting is over, the thinnest tubes left out (twigs first, never the trunk).
     Returns the mesh, the thick and thin settings ``(sides, rings)``, how many tubes are thick,
     how many were left out."""
-    p0 = look.mesh
+    p0 = replace(look.mesh, forks="overlap")     # a level mixes two tube settings bone by bone
     B = len(rest)
     (ls, lk), (hs, hk) = tube_settings(p0.sides, p0.ring_count(), allowed / max(B, 1))
     lo_t, hi_t = tube_triangles(ls, lk), tube_triangles(hs, hk)

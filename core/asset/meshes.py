@@ -8,6 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..detail import branch_mesh as bm
+from ..detail.forks import pipe_heads
 from ..detail.leaf_clusters import flap_weights, leaf_flap_offsets, leaf_mesh
 from ..tree3d import Tree3D
 from .look import Look
@@ -61,15 +62,26 @@ class LeafMesh:
 
 def branch_arrays(tree: Tree3D, rest: np.ndarray, params: bm.MeshParams, widen: float = 1.0) -> BranchMesh:
     """The :class:`BranchMesh` of ``tree`` at rest, its bones' rest rotations ``rest (B, 3, 3)``,
-    radii × ``widen`` floored at 10⁻⁴ of the tree's size (no zero-width tube)."""
+    radii × ``widen`` floored at 10⁻⁴ of the tree's size (no zero-width tube); joined forks follow
+    the tree's measured pipe exponent (:func:`pipe_exponent`)."""
     r_head, r_tail = (widen * r for r in bm.branch_radii(tree.parents, tree.radius))
+    delta = pipe_exponent(tree)
+    r_head = pipe_heads(tree.parents, r_head, r_tail, delta)      # every level: the joined forks' radii
     floor = 1e-4 * max(float(np.ptp(tree.nodes3d[0], axis=0).max()), 1e-3)
     g = bm.tube_arrays(tree.nodes3d[0], tree.parents, rest, np.maximum(r_head, floor),
                        np.maximum(r_tail, floor), params.sides, curliness=params.curliness, bark=params.bark,
-                       rings=params.rings, seed=params.seed)
+                       rings=params.rings, seed=params.seed, forks=params.forks,
+                       pipe_exponent=delta)
     return BranchMesh(g["co"].astype(np.float32), g["loop_vert"].astype(np.int32), g["loop_start"].astype(np.int32),
                       g["loop_total"].astype(np.int32), np.asarray(g["smooth"], bool), g["uv"].astype(np.float32),
                       np.asarray(g["vert_bone"], np.int32))
+
+
+def pipe_exponent(tree: Tree3D) -> float:
+    """The pipe model's exponent Δ a joined fork keeps: the tree's own median
+    (``meta["allometry"]["pipe_exponent"]``) within [1.5, 3.5], else Leonardo's 2."""
+    delta = (tree.meta.get("allometry") or {}).get("pipe_exponent")
+    return 2.0 if delta is None else float(np.clip(delta, 1.5, 3.5))
 
 
 def leaf_arrays(tree: Tree3D, look: Look, first_bone: int = 0) -> LeafMesh:

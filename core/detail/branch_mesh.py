@@ -32,6 +32,7 @@ import numpy as np
 from .. import bones, rotations
 from ..errors import InputError
 from ..params import check, param
+from .forks import plan_forks as fork_plan
 from .shapes import BARK_PRESETS, minimum_jerk, random_bark
 
 #: the largest lateral offset of a curly tube at curliness 1, share of its bone's length
@@ -41,19 +42,23 @@ CURLY_RINGS = 6
 #: bark phase drift, radians per unit of v (one texture tile), at most
 BARK_DRIFT = 1.0
 BARK_KINDS = ("none",) + tuple(BARK_PRESETS)
+#: how tubes meet at a node: one closed surface, or tubes that interpenetrate (:mod:`core.detail.forks`)
+FORK_KINDS = ("joined", "overlap")
 
 
 @dataclass
 class MeshParams:
     """Branch mesh settings: ``sides`` S ≥ 3 vertices per ring; ``curliness`` 0..1; ``bark`` one of
     :data:`BARK_KINDS`; ``rings`` K per bone (0 = automatic: 2 if straight, :data:`CURLY_RINGS`
-    if curly); ``seed`` for the offsets and the bark."""
+    if curly); ``seed`` for the offsets and the bark; ``forks`` one of
+    :data:`FORK_KINDS` (how tubes meet at a node)."""
 
     sides: int = 8
     curliness: float = param(0.3, 0.0, 1.0, what="curliness")
     bark: str = param("rough", choices=BARK_KINDS, what="bark")
     rings: int = 0
     seed: int = 0
+    forks: str = param("joined", choices=FORK_KINDS, what="forks")
 
     def ring_count(self) -> int:
         if self.rings:
@@ -65,6 +70,8 @@ def check_params(p: MeshParams) -> None:
     """Raise :class:`InputError` naming a bad setting."""
     if not isinstance(p.sides, (int, np.integer)) or p.sides < 3:
         raise InputError(f"tubes need at least 3 sides (got {p.sides})")
+    if p.forks not in FORK_KINDS:
+        raise InputError(f"unknown forks '{p.forks}'; choose one of {', '.join(FORK_KINDS)}")
     if p.bark not in BARK_KINDS:
         raise InputError(f"unknown bark '{p.bark}'; choose one of {', '.join(BARK_KINDS)}")
     check(p)
@@ -127,24 +134,53 @@ def curl_offsets(rest: np.ndarray, length: np.ndarray, curliness: float, seed: i
     return (curliness * CURL_SHARE * length * m)[:, None] * d
 
 
+def _frames(head: np.ndarray, seg: np.ndarray, offset: np.ndarray, rest: np.ndarray, tau: np.ndarray,
+            curly: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The centre line at ``tau (M, K)`` along bones ``head``, ``seg = tail − head``, ``offset (M,
+    3)`` (the minimum-jerk bump on [0, 1] only; straight beyond) and the rings' axes: ``centre``,
+    unit ``tangent``, ``rx``, ``rz`` each ``(M, K, 3)`` (the bone's X/Z of ``rest (M, 3, 3)`` swung,
+    without twist, from its Y onto the tangent)."""
+    tc = np.clip(tau, 0.0, 1.0)
+    s = minimum_jerk(tc)
+    bump = 4.0 * s * (1.0 - s)
+    dbump = 4.0 * (1.0 - 2.0 * s) * 30.0 * tc ** 2 * (1.0 - tc) ** 2 * (tau > 0) * (tau < 1)
+    centre = head[:, None] + tau[..., None] * seg[:, None] + bump[..., None] * offset[:, None]
+    tangent = seg[:, None] + dbump[..., None] * offset[:, None]
+    tangent = tangent / np.linalg.norm(tangent, axis=-1, keepdims=True)
+    axis_x, axis_y, axis_z = rest[:, :, 0], rest[:, :, 1], rest[:, :, 2]
+    if curly:
+        q = rotations.swing(np.broadcast_to(axis_y[:, None], tangent.shape), tangent)           # (M, K, 4)
+        rx = rotations.quat_rotate(q, np.broadcast_to(axis_x[:, None], tangent.shape))
+        rz = rotations.quat_rotate(q, np.broadcast_to(axis_z[:, None], tangent.shape))
+    else:                                       # straight: exactly the rest axes (Blender's float32)
+        rx = np.broadcast_to(axis_x[:, None], tangent.shape)
+        rz = np.broadcast_to(axis_z[:, None], tangent.shape)
+    return centre, tangent, rx, rz
+
+
 def tube_arrays(rest_pos: np.ndarray, parents: np.ndarray, rest: np.ndarray, r_head: np.ndarray,
                 r_tail: np.ndarray, sides: int = 8, *, curliness: float = 0.0, bark: str = "none",
-                rings: int = 0, seed: int = 0) -> dict:
+                rings: int = 0, seed: int = 0, forks: str = "overlap", pipe_exponent: float = 2.0) -> dict:
     """Geometry of one closed tube per bone (see the module docstring).
 
     ``rest_pos (N, 3)`` metres, ``rest (B, 3, 3)`` bone rest rotations (Y along the bone; rings of
     straight tubes lie in the bones' X/Z planes), radii ``(B,)`` metres at head and tail (linear
-    taper). Each tube of a bone with a parent bone starts ``ext = r_head`` (at most half the parent's
-    length) before its head, straight along the bone, inside the parent's tube, so joints stay
-    closed when the tree bends; ``K`` rings are spread evenly from there to the tail.
+    taper). With ``forks="overlap"`` each tube of a bone with a parent bone starts ``ext = r_head``
+    (at most half the parent's length) before its head, straight along the bone, inside the parent's
+    tube, so joints stay closed when the tree bends; ``K`` rings are spread evenly from there to the
+    tail. With ``forks="joined"`` the tubes end in rings short of every node and the nodes' junctions
+    (:mod:`core.detail.forks`; the continuing child's head radius by the pipe model with
+    ``pipe_exponent``) make one closed surface; the bark's relief fades out on those rings.
 
     Returns arrays: ``co (V, 3)``; ``loop_vert (L,)``; ``loop_start``, ``loop_total``, ``smooth (P,)``;
     ``uv (L, 2)``; ``vert_bone (V,)``; per ring ``centre (B, K, 3)``, ``tangent (B, K, 3)`` (unit),
     ``r0 (B, K)`` (radius before bark), ``tau (B, K)`` (position along the bone: 0 head, 1 tail,
     < 0 in the extension), ``v (B, K)``; ``bark`` = :func:`bark_terms`; ``tile`` (metres per unit
-    of v). ``V = K·S·B``, ``P = ((K − 1)·S + 2)·B``, ``L = (4(K − 1) + 2)·S·B``; ring ``j`` of bone
-    ``b`` is vertices ``(b·K + j)·S … + S − 1``, vertex ``k`` at angle ``θ_k = 2πk/S`` from the ring's X."""
-    p = MeshParams(int(sides), float(curliness), bark, int(rings), int(seed))
+    of v); ``plan`` the :class:`~core.detail.forks.ForkPlan` (joined only). ``V = K·S·B``; ring ``j``
+    of bone ``b`` is vertices ``(b·K + j)·S … + S − 1``, vertex ``k`` at angle ``θ_k = 2πk/S`` from the
+    ring's X. Overlapping: ``P = ((K − 1)·S + 2)·B``, ``L = (4(K − 1) + 2)·S·B``, polygons contiguous
+    per bone."""
+    p = MeshParams(int(sides), float(curliness), bark, int(rings), int(seed), forks)
     check_params(p)
     S, K = p.sides, p.ring_count()
     edges = bones.bone_edges(parents)
@@ -155,33 +191,33 @@ def tube_arrays(rest_pos: np.ndarray, parents: np.ndarray, rest: np.ndarray, r_h
     r_head = np.asarray(r_head, np.float64)
     r_tail = np.asarray(r_tail, np.float64)
     head, tail = P0[edges[:, 0]], P0[edges[:, 1]]
-    length = np.linalg.norm(tail - head, axis=1)
-    axis_x, axis_y, axis_z = rest[:, :, 0], rest[:, :, 1], rest[:, :, 2]
-    ext = np.where(parent_bone >= 0, np.minimum(r_head, 0.5 * length[np.maximum(parent_bone, 0)]), 0.0)
-
-    # centre line: rings evenly from τ0 = −ext/length to 1; the minimum-jerk bump on [0, 1] only
-    tau0 = -ext / np.maximum(length, 1e-12)
-    tau = tau0[:, None] + (1.0 - tau0)[:, None] * np.linspace(0.0, 1.0, K)[None]      # (B, K)
-    offset = curl_offsets(rest, length, p.curliness, p.seed)                            # (B, 3)
-    tc = np.clip(tau, 0.0, 1.0)
-    s = minimum_jerk(tc)
-    bump = 4.0 * s * (1.0 - s)
-    dbump = 4.0 * (1.0 - 2.0 * s) * 30.0 * tc ** 2 * (1.0 - tc) ** 2 * (tau > 0) * (tau < 1)
     seg = tail - head
-    centre = head[:, None] + tau[..., None] * seg[:, None] + bump[..., None] * offset[:, None]
-    tangent = seg[:, None] + dbump[..., None] * offset[:, None]
-    tangent /= np.linalg.norm(tangent, axis=-1, keepdims=True)
-    # ring axes: the bone's X/Z swung (no twist) from the bone's Y onto the curve's tangent
-    if p.curliness > 0:
-        q = rotations.swing(np.broadcast_to(axis_y[:, None], tangent.shape), tangent)           # (B, K, 4)
-        rx = rotations.quat_rotate(q, np.broadcast_to(axis_x[:, None], tangent.shape))
-        rz = rotations.quat_rotate(q, np.broadcast_to(axis_z[:, None], tangent.shape))
-    else:                                       # straight: exactly the rest axes (Blender's float32)
-        rx = np.broadcast_to(axis_x[:, None], tangent.shape)
-        rz = np.broadcast_to(axis_z[:, None], tangent.shape)
+    length = np.linalg.norm(seg, axis=1)
+    ext = np.where(parent_bone >= 0, np.minimum(r_head, 0.5 * length[np.maximum(parent_bone, 0)]), 0.0)
+    offset = curl_offsets(rest, length, p.curliness, p.seed)                            # (B, 3)
+    curly = p.curliness > 0
+    theta = 2 * math.pi * np.arange(S) / S
+    plan = None
+    if p.forks == "joined":
+        def ring_points(b, t, r):
+            c, _, x, z = _frames(head[b], seg[b], offset[b], rest[b], t[:, None], curly)
+            ring = np.cos(theta)[None, :, None] * x[:, 0, None] + np.sin(theta)[None, :, None] * z[:, 0, None]
+            return c[:, 0, None] + r[:, None, None] * ring
+
+        def tangents(b, t):
+            return _frames(head[b], seg[b], offset[b], rest[b], t[:, None], curly)[1][:, 0]
+        plan = fork_plan(parents, length, r_head, r_tail, ext, ring_points, tangents, S, float(pipe_exponent))
+        r_head = plan.r_head
+        tau0, tau1 = plan.tau_start, plan.tau_end
+    else:
+        tau0, tau1 = -ext / np.maximum(length, 1e-12), np.ones(B)
+
+    # centre line: rings evenly from τ0 to τ1; the minimum-jerk bump on [0, 1] only
+    tau = tau0[:, None] + (tau1 - tau0)[:, None] * np.linspace(0.0, 1.0, K)[None]      # (B, K)
+    centre, tangent, rx, rz = _frames(head, seg, offset, rest, tau, curly)
 
     # arc length along the curved centre lines (ring to ring over [0, 1], ×1 for straight tubes)
-    if p.curliness > 0:
+    if curly:
         fine = np.linspace(0.0, 1.0, 33)
         sf = minimum_jerk(fine)
         pts = head[:, None] + fine[None, :, None] * seg[:, None] + (4 * sf * (1 - sf))[None, :, None] * offset[:, None]
@@ -195,12 +231,15 @@ def tube_arrays(rest_pos: np.ndarray, parents: np.ndarray, rest: np.ndarray, r_h
     # radius per ring (linear taper in τ from head to tail; the extension keeps r_head) and bark
     w = np.clip(tau, 0.0, 1.0)
     r0 = r_head[:, None] * (1.0 - w) + r_tail[:, None] * w                              # (B, K)
-    theta = 2 * math.pi * np.arange(S) / S
     amp, freqs, phases, drift = bark_terms(p.bark, S, p.seed)
     if len(amp):
         ph = phases[None, None] + drift[None, None] * v[..., None]                       # (B, K, T)
         wave = np.sum(amp * np.sin(freqs * theta[:, None, None, None] + ph[None]), axis=-1)   # (S, B, K)
-        radius = r0[..., None] * (1.0 + np.moveaxis(wave, 0, -1))                       # (B, K, S)
+        wave = np.moveaxis(wave, 0, -1)                                                 # (B, K, S)
+        if plan is not None:                   # a junction's rings keep the hull's circles
+            wave[~plan.head_cap, 0] = 0.0
+            wave[~plan.tail_cap, -1] = 0.0
+        radius = r0[..., None] * (1.0 + wave)
     else:
         radius = np.broadcast_to(r0[..., None], (B, K, S))
     ring = np.cos(theta)[None, None, :, None] * rx[:, :, None] + np.sin(theta)[None, None, :, None] * rz[:, :, None]
@@ -233,11 +272,50 @@ def tube_arrays(rest_pos: np.ndarray, parents: np.ndarray, rest: np.ndarray, r_h
     uv[:, ns:ns + S, 1] = v[:, :1] + (r0[:, :1] / tile) * np.sin(theta)[None]
     uv[:, ns + S:, 0] = u_cap[::-1]
     uv[:, ns + S:, 1] = v[:, -1:] + (r0[:, -1:] / tile) * np.sin(theta[::-1])[None]
-    return {"co": co.reshape(-1, 3), "loop_vert": loop_vert, "loop_start": loop_start,
-            "loop_total": loop_total, "smooth": smooth, "uv": uv.reshape(-1, 2),
-            "vert_bone": np.repeat(np.arange(B), K * S), "centre": centre, "tangent": tangent,
-            "r0": r0, "tau": tau, "v": v, "bark": (amp, freqs, phases, drift), "tile": tile,
-            "rings": K, "sides": S}
+    out = {"co": co.reshape(-1, 3), "loop_vert": loop_vert, "loop_start": loop_start,
+           "loop_total": loop_total, "smooth": smooth, "uv": uv.reshape(-1, 2),
+           "vert_bone": np.repeat(np.arange(B), K * S), "centre": centre, "tangent": tangent,
+           "r0": r0, "tau": tau, "v": v, "bark": (amp, freqs, phases, drift), "tile": tile,
+           "rings": K, "sides": S, "plan": plan}
+    if plan is not None:
+        out.update(joined_polygons(out, plan, K, S, v))
+    return out
+
+
+def joined_polygons(g: dict, plan, K: int, S: int, v: np.ndarray) -> dict:
+    """The polygons of joined tubes: each bone's side quads, the caps only where a tube ends
+    unjoined (the root's foot, the tips, a fork left overlapping), then the junctions' triangles and
+    the bends' quads (smooth; their loops' UVs the rings' own ``(k/S, v)``, a face across the seam
+    taking ``u + 1`` on its low side)."""
+    n_loops = (4 * (K - 1) + 2) * S
+    totals = np.concatenate([np.full((K - 1) * S, 4), [S, S]])
+    B = len(plan.head_cap)
+    keep = np.ones((B, len(totals)), bool)
+    keep[:, -2] = plan.head_cap
+    keep[:, -1] = plan.tail_cap
+    keep_poly = keep.ravel()
+    loop_keep = np.repeat(keep_poly, g["loop_total"])
+    tris, quads = plan.polygons(K, S)
+    extra = np.concatenate([tris.ravel(), quads.ravel()]).astype(np.int64)
+    loop_vert = np.concatenate([g["loop_vert"][loop_keep], extra])
+    loop_total = np.concatenate([g["loop_total"][keep_poly], np.full(len(tris), 3), np.full(len(quads), 4)])
+    loop_start = np.concatenate([[0], np.cumsum(loop_total)[:-1]])
+    smooth = np.concatenate([g["smooth"][keep_poly], np.ones(len(tris) + len(quads), bool)])
+    # the extra faces' UVs: (k / S, v of the vertex's ring), unwrapped across the seam per face
+    kk = extra % S
+    ring = extra // S                                                  # b·K + j
+    u = kk / S
+    face = np.concatenate([np.repeat(np.arange(len(tris)), 3), len(tris) + np.repeat(np.arange(len(quads)), 4)])
+    hi = np.zeros(len(tris) + len(quads))
+    np.maximum.at(hi, face, u)
+    lo = np.full(len(tris) + len(quads), np.inf)
+    np.minimum.at(lo, face, u)
+    wrap = (hi - lo) > 0.5
+    u = np.where(wrap[face] & (u < 0.5), u + 1.0, u)
+    uv_extra = np.stack([u, v.reshape(-1)[ring]], axis=1)
+    uv = np.concatenate([g["uv"].reshape(B, n_loops, 2).reshape(-1, 2)[loop_keep], uv_extra])
+    return {"loop_vert": loop_vert, "loop_start": loop_start, "loop_total": loop_total, "smooth": smooth,
+            "uv": uv}
 
 
 def mesh_stats(g: dict) -> dict:
