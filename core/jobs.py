@@ -46,7 +46,7 @@ OPTIONS: dict[str, type] = {
     "video": str, "outline": str, "out": str, "tree": str, "npz": bool,
     "levels": int, "frames": str, "skeleton": str, "scale": float, "form": str, "conifer": bool,
     "limbs": str, "limb_species": str, "depth": str, "solver": str, "height": float, "twigs": int,
-    "no_branch_fit": bool, "curliness": float, "bark": str, "no_leaves": bool, "leaf_density": float,
+    "no_branch_fit": bool, "curliness": float, "bark": str, "forks": str, "no_leaves": bool, "leaf_density": float,
     "leaf_cards": int, "flutter_hz": float, "leaf_colour": str, "leaf_image": str,
     "engine": str, "loop": float, "bones": int, "lods": int, "pivot_painter": bool, "collision": bool,
     "impostor": bool, "bone_texture": bool, "viewer": bool,
@@ -67,6 +67,7 @@ GAME = ("bones", "lods", "loop", "pivot_painter", "bone_texture", "collision", "
 SETTINGS = {"levels": "levels", "frames": "frames", "skeleton": "skeleton", "scale": "scale", "form": "form",
             "limbs": "limbs", "limb_species": "limb_species", "depth": "depth", "solver": "solver",
             "height": "height_m", "twigs": "twigs", "curliness": "curliness", "bark": "bark",
+            "forks": "forks",
             "leaf_density": "leaf_density", "leaf_cards": "leaf_cards", "flutter_hz": "flutter_hz",
             "leaf_colour": "leaf_colour", "fold_alpha": "fold_alpha", "candidates": "candidates",
             "sigma_track": "sigma_track", "sigma_shape": "sigma_shape", "max_step": "max_step",
@@ -142,7 +143,7 @@ class PhotoJob(ReconstructJob):
 @dataclass
 class GenerateJob:
     """``request.count`` new trees of a species written to ``out`` (``out/tree_000/``…), with the
-    branch mesh's ``curliness`` and ``bark``."""
+    branch mesh's ``curliness``, ``bark`` and ``forks``."""
 
     kind: ClassVar[str] = "generate"
     request: GenerateRequest
@@ -150,6 +151,7 @@ class GenerateJob:
     outputs: JobOutputs
     curliness: float = Settings().curliness
     bark: str = Settings().bark
+    forks: str = Settings().forks
 
 
 @dataclass
@@ -333,7 +335,7 @@ def from_flat(flat: dict, where: str = "the job") -> Job:
                              "of bark to grow trees without a video")
         d = Settings()
         return GenerateJob(request_of(o, False, outputs.game.loop_s), out, outputs,
-                           o.get("curliness", d.curliness), o.get("bark", d.bark))
+                           o.get("curliness", d.curliness), o.get("bark", d.bark), o.get("forks", d.forks))
     photo = is_photo(video)
     if o.get("generate") is None:
         allowed = ("species", "seconds") if photo else ()
@@ -372,6 +374,7 @@ def _settings_flat(s: Settings) -> dict:
             "form": s.form, "limbs": s.limbs, "limb_species": s.limb_species, "depth": s.depth,
             "solver": s.motion.solver, "height": float(s.height_m), "twigs": int(s.twigs.depth),
             "no_branch_fit": not s.fit_branches, "curliness": float(s.curliness), "bark": s.bark,
+            "forks": s.forks,
             "no_leaves": leaves is None, "fold_alpha": float(s.fold_alpha), "candidates": int(s.lift.candidates),
             "sigma_track": float(s.motion.sigma_track), "sigma_shape": float(s.motion.sigma_shape),
             "max_step": float(s.motion.max_step), "max_total": float(s.motion.max_total)}
@@ -401,7 +404,8 @@ def to_flat(job: Job) -> dict:
         flat["tree"] = job.tree
     elif isinstance(job, GenerateJob):
         flat.update(_request_flat(job.request), height=float(job.request.height_m),
-                    twigs=int(job.request.twig_depth), curliness=float(job.curliness), bark=job.bark)
+                    twigs=int(job.request.twig_depth), curliness=float(job.curliness), bark=job.bark,
+                    forks=job.forks)
         if job.request.leaf_density == 0.0:
             flat["no_leaves"] = True
         else:

@@ -113,7 +113,7 @@ def test_hand_fork_is_one_sphere(kw):
     assert _inside_parent(g, tree) == 0.0
     o = _mesh(tree, "overlap", **kw)
     assert _closed_outward(o)[2] == 3                    # three tubes before
-    assert _inside_parent(o, tree) > 0.1
+    assert _inside_parent(o, tree) > 0.3                 # measured 0.344
 
 
 def test_trees_join(grown):
@@ -192,3 +192,32 @@ def test_junction_bends_with_its_bones():
         worst.append(np.mean(out <= 0))
     print(f"junction faces turned over in any posed frame: {max(worst):.4f} of {len(tris)}")
     assert max(worst) <= 0.005
+
+
+def test_forks_setting_reaches_the_tree_and_its_asset():
+    """``forks`` is one setting of the product: the batch's job, the API's settings and the generator
+    record it in the tree, and the asset's mesh is built with it (a bad value: one line)."""
+    from tree_from_video import api
+    from tree_from_video.core import jobs
+    from tree_from_video.core.asset import tree_asset
+    from tree_from_video.core.errors import InputError
+
+    assert api.settings().forks == "joined" == bm.MeshParams().forks
+    assert api.settings(forks="overlap").forks == "overlap"
+    with pytest.raises(InputError, match="forks 'bent'"):
+        api.settings(forks="bent")
+    job = jobs.from_flat({"generate": 1, "species": "broad", "forks": "overlap", "out": "x"})
+    assert job.forks == "overlap"
+    tree, = api.generate("broad", 1, seed=213, node_budget=80, n_frames=4, forks="overlap")
+    assert tree.meta["mesh"]["forks"] == "overlap"
+    polygons = {}
+    for forks in ("overlap", "joined"):
+        mesh = tree_asset(tree, forks=forks).branches
+        g = {"co": mesh.co.astype(np.float64), "loop_vert": mesh.loop_vert, "loop_start": mesh.loop_start,
+             "loop_total": mesh.loop_total}
+        closed, outward, pieces, _ = _closed_outward(g)
+        polygons[forks] = (closed and outward, pieces, int((mesh.loop_total == 3).sum()))
+    print(polygons)
+    assert polygons["overlap"][0] and polygons["joined"][0]
+    assert polygons["overlap"][2] == 0 < polygons["joined"][2]            # junction triangles
+    assert polygons["joined"][1] < polygons["overlap"][1] / 3              # far fewer pieces

@@ -55,6 +55,7 @@ CORE_FIELDS = {
     "forest_variants": (ForestSettings, "variants"),
     "curliness": (MeshParams, "curliness"),
     "bark": (MeshParams, "bark"),
+    "forks": (MeshParams, "forks"),
     "leaf_density": (LeafParams, "density"),
     "leaf_cards": (LeafParams, "cards"),
     "max_leaf_clusters": (LeafParams, "max_clusters"),
@@ -260,6 +261,12 @@ class TreeVideoSettings(bpy.types.PropertyGroup):
                ("smooth", "Smooth", "Bark relief up to 0.5% of the radius (beech, birch)"),
                ("rough", "Rough", "Bark relief of 1-5% of the radius (oak, pine)")],
         description="Relief of the bark around the branch tubes")
+    forks: bpy.props.EnumProperty(
+        name="Forks", **_core("forks"),
+        items=[("joined", "Joined", "Where branches fork the tubes join into one closed surface; the "
+                                    "continuing branch starts at the pipe model's radius"),
+               ("overlap", "Overlap", "Each branch is its own tube, starting inside its parent")],
+        description="How the branch tubes meet where the tree forks")
     bark_image: bpy.props.StringProperty(name="Bark Image", subtype="FILE_PATH", **_blend_relative(),
                                          description="A close-up photo of the bark: the bark becomes a seamless "
                                                      "tile quilted from it (colour, relief, roughness) instead of the "

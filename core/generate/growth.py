@@ -122,6 +122,7 @@ class GrowParams:
     name: str | None = None
     curliness: float = same_as(MeshParams, "curliness")
     bark: str = same_as(MeshParams, "bark")
+    forks: str = same_as(MeshParams, "forks")
     loop_s: float = same_as(LoopSettings, "seconds")
     envelope_variation: float = param(0.0, 0.0, 1.0, what="--envelope-variation")
     allometry: bool = False
@@ -575,7 +576,8 @@ def grow_tree(model: SpeciesModel, envelope: Envelope, params: GrowParams | None
             "mu_deg": float(np.degrees(mu)), "height_px": float(H * k), "metres_per_px": float(1.0 / k),
             "leaf_density": float(p.leaf_density), "node_budget": int(p.node_budget),
             "time_offset_s": float(p.time_offset_s), "sway_scale": float(sway_scale),
-            "mesh": {"curliness": float(p.curliness), "bark": str(p.bark), "seed": int(p.seed)}}
+            "mesh": {"curliness": float(p.curliness), "bark": str(p.bark), "seed": int(p.seed),
+                     "forks": str(p.forks)}}
     if period_s is not None:
         meta["periodic"] = {"frames": int(n_frames - 1), "seconds": float(period_s)}
     if variation is not None:

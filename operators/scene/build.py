@@ -33,7 +33,7 @@ MAX_NAME = 63
 def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = False,
                mesh: bool = True, sides: int = 8, leaves: bool = True,
                leaf_image: str | None = None, curliness: float | None = None,
-               bark: str | None = None, materials: dict | None = None, update_frame: bool = True,
+               bark: str | None = None, forks: str | None = None, materials: dict | None = None, update_frame: bool = True,
                keep_view: bool = False, every_key: bool = False, bone_budget: int | None = None,
                lods: int = 1, pivots: bool = False, collision: bool = False, impostor: bool = False,
                bark_maps=None) -> dict:
@@ -52,7 +52,8 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
     grows the range to cover ``1..F`` (:func:`.timing.fit_scene_timing`); with ``mesh``, a branch mesh
     ``"<name> Branches"`` (tapered tubes with ``sides`` sides, one vertex group per bone, Armature
     modifier, parented to the rig; ``curliness`` 0..1 and ``bark`` "none"/"smooth"/"rough" as in
-    :mod:`core.branch_mesh`, None: from ``tree.meta["mesh"]``, see :func:`mesh_params`) and a bark
+    :mod:`core.branch_mesh`, and ``forks`` "joined"/"overlap", None: from ``tree.meta["mesh"]``, see
+    :func:`mesh_params`) and a bark
     material ``"<name> Bark"``; with ``leaves`` and
     ``tree.leaves``, one bone per leaf cluster (``"L0000"``…, child of its branch bone, keyed with
     its flutter) and a skinned leaf mesh ``"<name> Leaves"`` with material ``"<name> Leaf"``
@@ -97,7 +98,7 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
         raise InputError(f"a collection named '{collection_name}' already exists; choose another name "
                          "or replace it (replace=True)")
     # everything Blender copies, computed in the core (rig, keys, meshes, look)
-    asset = tree_asset(tree, mesh=mesh, leaves=leaves, sides=sides, curliness=curliness, bark=bark,
+    asset = tree_asset(tree, mesh=mesh, leaves=leaves, sides=sides, curliness=curliness, bark=bark, forks=forks,
                        leaf_image=leaf_image, every_key=every_key, bone_budget=bone_budget, lods=lods,
                        pivots=pivots, collision=collision,
                        as_levels=impostor)

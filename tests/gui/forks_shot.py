@@ -1,0 +1,57 @@
+"""GUI run (issue 36 part 3): the broad sample's true tree built twice in the real Blender, with
+*Forks* Overlap (left: every branch its own tube, starting inside its parent) and Joined (right:
+one closed surface), Material Preview, close on its first forks, posed mid-sway. For the README.
+
+    real-blender gui-shot OUT.png --size 1400x900 --wait 30 -- \
+        blender --factory-startup --python tests/gui/forks_shot.py
+"""
+import os
+import sys
+
+import bpy
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))   # this folder: _addon.py
+from _addon import ROOT, register_with_sample  # noqa: E402
+
+sys.path.insert(0, os.path.join(ROOT, "tests"))
+register_with_sample()
+for ob in list(bpy.data.objects):          # an empty stage
+    bpy.data.objects.remove(ob)
+
+from tree_from_video.core import bones  # noqa: E402
+from tree_from_video.operators.scene import build  # noqa: E402
+
+from trees import broad_tree  # noqa: E402
+
+tree = broad_tree(48)
+GAP = 1.1
+overlap = build.build_tree(bpy.context, tree, "Overlap", forks="overlap", leaves=False)
+joined = build.build_tree(bpy.context, tree, "Joined", forks="joined", leaves=False)
+joined["armature"].location.x = GAP
+edges = bones.bone_edges(tree.parents)
+n_out = np.bincount(edges[:, 0], minlength=len(tree.parents))
+first = int(np.flatnonzero(n_out >= 2)[0])
+focus = tree.nodes3d[0, first].astype(float)
+print(f"first fork at node {first}, {focus.round(3)} m; polygons: overlap {len(overlap['mesh'].data.polygons)}, "
+      f"joined {len(joined['mesh'].data.polygons)}", flush=True)
+
+
+def show():
+    if bpy.context.window.screen is None:
+        return 0.3
+    area = next(a for a in bpy.context.window.screen.areas if a.type == "VIEW_3D")
+    space = area.spaces.active
+    space.shading.type = "MATERIAL"
+    space.overlay.show_overlays = False
+    r3d = space.region_3d
+    r3d.view_perspective = "PERSP"
+    r3d.view_rotation = (0.72, 0.69, 0.03, 0.03)          # from the front, a little from above
+    r3d.view_location = (focus[0] + GAP / 2, focus[1], focus[2] + 0.12)
+    r3d.view_distance = 1.6
+    bpy.context.scene.frame_set(20)
+    print("ui ready", flush=True)
+    return None
+
+
+bpy.app.timers.register(show, first_interval=1.0)
