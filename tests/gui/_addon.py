@@ -21,6 +21,29 @@ def register_with_sample():
     return props
 
 
+def empty_stage():
+    """Register the add-on (:func:`register_with_sample`), put ``tests/`` on the path and remove
+    every object: a stage for trees built by hand."""
+    sys.path.insert(0, os.path.join(ROOT, "tests"))
+    props = register_with_sample()
+    for ob in list(bpy.data.objects):
+        bpy.data.objects.remove(ob)
+    return props
+
+
+def material_view(space, location, distance: float, rotation=(0.71, 0.70, 0.0, 0.0)) -> None:
+    """The 3D view ``space`` in Material Preview without overlays, in perspective, looking at
+    ``location`` from ``distance`` metres (``rotation`` the view's quaternion: from the front,
+    level)."""
+    space.shading.type = "MATERIAL"
+    space.overlay.show_overlays = False
+    r3d = space.region_3d
+    r3d.view_perspective = "PERSP"
+    r3d.view_rotation = rotation
+    r3d.view_location = location
+    r3d.view_distance = distance
+
+
 def open_tree_tab(set_view, frame: int = 30):
     """A ``bpy.app.timers`` callback: open the 3D view's sidebar on the "Tree" tab (retrying until
     the tab list exists), solid shading, ``set_view(space, region_3d)`` for the camera, then go to

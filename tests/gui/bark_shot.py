@@ -13,12 +13,9 @@ import bpy
 import cv2
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))   # this folder: _addon.py
-from _addon import ROOT, register_with_sample  # noqa: E402
+from _addon import empty_stage, material_view  # noqa: E402
 
-sys.path.insert(0, os.path.join(ROOT, "tests"))
-register_with_sample()
-for ob in list(bpy.data.objects):          # an empty stage
-    bpy.data.objects.remove(ob)
+empty_stage()
 from bark_photos import bark_photo  # noqa: E402
 
 from tree_from_video.core.detail.bark_photo import BarkPhotoParams, bark_maps  # noqa: E402
@@ -41,14 +38,7 @@ def show():
     if bpy.context.window.screen is None:
         return 0.3
     area = next(a for a in bpy.context.window.screen.areas if a.type == "VIEW_3D")
-    space = area.spaces.active
-    space.shading.type = "MATERIAL"
-    space.overlay.show_overlays = False
-    r3d = space.region_3d
-    r3d.view_perspective = "PERSP"
-    r3d.view_rotation = (0.71, 0.70, 0.0, 0.0)            # from the front, level
-    r3d.view_location = (0.5, 0.0, 0.7)
-    r3d.view_distance = 1.9
+    material_view(area.spaces.active, (0.5, 0.0, 0.7), 1.9)
     print("ui ready", flush=True)
     return None
 

@@ -12,13 +12,9 @@ import bpy
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))   # this folder: _addon.py
-from _addon import ROOT, register_with_sample  # noqa: E402
+from _addon import empty_stage, material_view  # noqa: E402
 
-sys.path.insert(0, os.path.join(ROOT, "tests"))
-register_with_sample()
-for ob in list(bpy.data.objects):          # an empty stage
-    bpy.data.objects.remove(ob)
-
+empty_stage()
 from tree_from_video.core import bones  # noqa: E402
 from tree_from_video.operators.scene import build  # noqa: E402
 
@@ -41,14 +37,8 @@ def show():
     if bpy.context.window.screen is None:
         return 0.3
     area = next(a for a in bpy.context.window.screen.areas if a.type == "VIEW_3D")
-    space = area.spaces.active
-    space.shading.type = "MATERIAL"
-    space.overlay.show_overlays = False
-    r3d = space.region_3d
-    r3d.view_perspective = "PERSP"
-    r3d.view_rotation = (0.72, 0.69, 0.03, 0.03)          # from the front, a little from above
-    r3d.view_location = (focus[0] + GAP / 2, focus[1], focus[2] + 0.12)
-    r3d.view_distance = 1.6
+    material_view(area.spaces.active, (focus[0] + GAP / 2, focus[1], focus[2] + 0.12), 1.6,
+                  (0.72, 0.69, 0.03, 0.03))                # from the front, a little from above
     bpy.context.scene.frame_set(20)
     print("ui ready", flush=True)
     return None

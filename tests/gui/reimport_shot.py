@@ -13,12 +13,9 @@ import bpy
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))   # this folder: _addon.py
-from _addon import ROOT, register_with_sample  # noqa: E402
+from _addon import empty_stage, material_view  # noqa: E402
 
-sys.path.insert(0, os.path.join(ROOT, "tests"))
-register_with_sample()
-for ob in list(bpy.data.objects):          # an empty stage
-    bpy.data.objects.remove(ob)
+empty_stage()
 from tree_from_video.operators.scene import build, export  # noqa: E402
 
 from trees import broad_tree  # noqa: E402
@@ -50,13 +47,7 @@ def compare():
     area = next(a for a in bpy.context.window.screen.areas if a.type == "VIEW_3D")
     space = area.spaces.active
     if not state["shown"]:                # Material Preview first; rendered after a few redraws
-        space.shading.type = "MATERIAL"
-        space.overlay.show_overlays = False
-        r3d = space.region_3d
-        r3d.view_perspective = "PERSP"
-        r3d.view_rotation = (0.71, 0.70, 0.0, 0.0)          # from the front, level
-        r3d.view_location = (SHIFT / 2, 0.0, 1.2)
-        r3d.view_distance = 5.0
+        material_view(space, (SHIFT / 2, 0.0, 1.2), 5.0)
         state["shown"] = True
         return 8.0
     scene = bpy.context.scene
