@@ -113,7 +113,8 @@ def test_hand_fork_is_one_sphere(kw):
     assert _inside_parent(g, tree) == 0.0
     o = _mesh(tree, "overlap", **kw)
     assert _closed_outward(o)[2] == 3                    # three tubes before
-    assert _inside_parent(o, tree) > 0.3                 # measured 0.344
+    # measured 0.344 smooth, 0.115 with rough bark (its ridges lift many tube vertices off the axis)
+    assert _inside_parent(o, tree) > (0.3 if not kw else 0.1)
 
 
 def test_trees_join(grown):
