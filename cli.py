@@ -149,6 +149,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--forks", choices=spec(M, "forks").choices, default=_default(M, "forks"),
                    help="where branches fork: joined (one closed surface, the continuing branch at the pipe "
                         "model's radius) or overlap (tubes that run into their parent) (default %(default)s)")
+    p.add_argument("--bark-relief", type=float, default=_default(M, "relief_cm"), metavar="CM",
+                   help=f"the bark's height map as geometry on the tubes, its depth on the trunk in cm, "
+                        f"{_range(M, 'relief_cm')} (default %(default)s: none); the tubes get at least 24 sides and "
+                        "12 rings a bone, LOD1+ keep none")
     B = BarkPhotoParams
     p.add_argument("--bark-image", action="append", metavar="PHOTO",
                    help="a close-up photo of the bark (repeat for several): the bark becomes a seamless tile "
@@ -388,14 +392,15 @@ def _plan_generation(run: Run, req: gb.GenerateRequest):
     return plan
 
 
-def _run_generation(run: Run, plan, outputs, look: tuple[float, str, str]) -> int:
+def _run_generation(run: Run, plan, outputs, look: tuple[float, str, str, float]) -> int:
     """Grow and write the trees of ``plan`` (its model and envelope set) into the job's folder, each
-    tree's branch mesh with ``look`` (curliness, bark, forks)."""
+    tree's branch mesh with ``look`` (curliness, bark, forks, relief_cm)."""
     write = None
     if outputs is not None:
         def write(tree, folder):
             tree.meta["mesh"] = {"curliness": float(look[0]), "bark": look[1],     # the branch mesh's look
-                                 "seed": int(tree.meta.get("seed", 0)), "forks": look[2]}
+                                 "seed": int(tree.meta.get("seed", 0)), "forks": look[2],
+                                 "relief_cm": float(look[3])}
             return _write_blender(run, outputs, tree, folder, run.log)
     t0 = time.monotonic()
     entries = gb.generate_trees(plan.model, plan.species_label, plan.envelope, plan.envelope_label, plan.req,
@@ -439,7 +444,7 @@ def _generate_only(run: Run) -> int:
     if own is not None:
         run.bark = own
         run.log(f"[bark] the species' bark from {plan.model.bark_dir}")
-    return _run_generation(run, plan, outputs, (job.curliness, job.bark, job.forks))
+    return _run_generation(run, plan, outputs, (job.curliness, job.bark, job.forks, job.relief_cm))
 
 
 def _variations(run: Run) -> int:
@@ -475,7 +480,7 @@ def _generate_from_tree(run: Run, plan, tree, name, outputs) -> int:
     if plan.envelope is None:
         plan.envelope, plan.envelope_label = envelope_from_meta(tree.meta), "reconstruction"
     s = run.job.settings
-    return _run_generation(run, plan, outputs, (s.curliness, s.bark, s.forks))
+    return _run_generation(run, plan, outputs, (s.curliness, s.bark, s.forks, s.relief_cm))
 
 
 def options(args) -> dict:

@@ -46,7 +46,8 @@ OPTIONS: dict[str, type] = {
     "video": str, "outline": str, "out": str, "tree": str, "npz": bool,
     "levels": int, "frames": str, "skeleton": str, "scale": float, "form": str, "conifer": bool,
     "limbs": str, "limb_species": str, "depth": str, "solver": str, "height": float, "twigs": int,
-    "no_branch_fit": bool, "curliness": float, "bark": str, "forks": str, "no_leaves": bool, "leaf_density": float,
+    "no_branch_fit": bool, "curliness": float, "bark": str, "forks": str, "bark_relief": float,
+    "no_leaves": bool, "leaf_density": float,
     "leaf_cards": int, "flutter_hz": float, "leaf_colour": str, "leaf_image": str,
     "engine": str, "loop": float, "bones": int, "lods": int, "pivot_painter": bool, "collision": bool,
     "impostor": bool, "bone_texture": bool, "viewer": bool,
@@ -67,7 +68,7 @@ GAME = ("bones", "lods", "loop", "pivot_painter", "bone_texture", "collision", "
 SETTINGS = {"levels": "levels", "frames": "frames", "skeleton": "skeleton", "scale": "scale", "form": "form",
             "limbs": "limbs", "limb_species": "limb_species", "depth": "depth", "solver": "solver",
             "height": "height_m", "twigs": "twigs", "curliness": "curliness", "bark": "bark",
-            "forks": "forks",
+            "forks": "forks", "bark_relief": "relief_cm",
             "leaf_density": "leaf_density", "leaf_cards": "leaf_cards", "flutter_hz": "flutter_hz",
             "leaf_colour": "leaf_colour", "fold_alpha": "fold_alpha", "candidates": "candidates",
             "sigma_track": "sigma_track", "sigma_shape": "sigma_shape", "max_step": "max_step",
@@ -143,7 +144,7 @@ class PhotoJob(ReconstructJob):
 @dataclass
 class GenerateJob:
     """``request.count`` new trees of a species written to ``out`` (``out/tree_000/``…), with the
-    branch mesh's ``curliness``, ``bark`` and ``forks``."""
+    branch mesh's ``curliness``, ``bark``, ``forks`` and ``relief_cm``."""
 
     kind: ClassVar[str] = "generate"
     request: GenerateRequest
@@ -152,6 +153,7 @@ class GenerateJob:
     curliness: float = Settings().curliness
     bark: str = Settings().bark
     forks: str = Settings().forks
+    relief_cm: float = Settings().relief_cm
 
 
 @dataclass
@@ -335,7 +337,8 @@ def from_flat(flat: dict, where: str = "the job") -> Job:
                              "of bark to grow trees without a video")
         d = Settings()
         return GenerateJob(request_of(o, False, outputs.game.loop_s), out, outputs,
-                           o.get("curliness", d.curliness), o.get("bark", d.bark), o.get("forks", d.forks))
+                           o.get("curliness", d.curliness), o.get("bark", d.bark), o.get("forks", d.forks),
+                           o.get("bark_relief", d.relief_cm))
     photo = is_photo(video)
     if o.get("generate") is None:
         allowed = ("species", "seconds") if photo else ()
@@ -374,7 +377,7 @@ def _settings_flat(s: Settings) -> dict:
             "form": s.form, "limbs": s.limbs, "limb_species": s.limb_species, "depth": s.depth,
             "solver": s.motion.solver, "height": float(s.height_m), "twigs": int(s.twigs.depth),
             "no_branch_fit": not s.fit_branches, "curliness": float(s.curliness), "bark": s.bark,
-            "forks": s.forks,
+            "forks": s.forks, "bark_relief": float(s.relief_cm) or None,
             "no_leaves": leaves is None, "fold_alpha": float(s.fold_alpha), "candidates": int(s.lift.candidates),
             "sigma_track": float(s.motion.sigma_track), "sigma_shape": float(s.motion.sigma_shape),
             "max_step": float(s.motion.max_step), "max_total": float(s.motion.max_total)}
@@ -405,7 +408,7 @@ def to_flat(job: Job) -> dict:
     elif isinstance(job, GenerateJob):
         flat.update(_request_flat(job.request), height=float(job.request.height_m),
                     twigs=int(job.request.twig_depth), curliness=float(job.curliness), bark=job.bark,
-                    forks=job.forks)
+                    forks=job.forks, bark_relief=float(job.relief_cm) or None)
         if job.request.leaf_density == 0.0:
             flat["no_leaves"] = True
         else:

@@ -95,7 +95,7 @@ KEYS: dict[str, Key] = {
                 "the tree's form (forms.TREE_FORMS): given, or detected from the outline"),
     "mu_deg": Key("degrees", ("pipeline.build_3d", "growth.grow_tree"), "the lift's mean branching angle μ"),
     "envelope": Key("m (EnvelopeMeta)", ("pipeline.build_3d", "growth.grow_tree"), "the crown envelope Ω"),
-    "mesh": Key("{curliness 0..1, bark, seed, forks}", ("pipeline.build_3d", "generate.growth", "cli"),
+    "mesh": Key("{curliness 0..1, bark, seed, forks, relief_cm}", ("pipeline.build_3d", "generate.growth", "cli"),
                 "the branch mesh's look, read by the Blender builder"),
     "limbs": Key("traced|grown|...", ("pipeline.build_3d",),
                  "the 2D skeleton's kind: grown where the crown's limbs were grown from a species "

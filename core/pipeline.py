@@ -78,6 +78,7 @@ class Settings(ReconstructSettings):
     curliness: float = same_as(MeshParams, "curliness")   # branch mesh (recorded in meta["mesh"])
     bark: str = same_as(MeshParams, "bark")               # branch mesh (recorded in meta["mesh"])
     forks: str = same_as(MeshParams, "forks")             # branch mesh (recorded in meta["mesh"])
+    relief_cm: float = same_as(MeshParams, "relief_cm")   # branch mesh (recorded in meta["mesh"])
     leaves: LeafParams | None = field(default_factory=LeafParams)   # None: bare branches
     fit_branches: bool = True       # branch widths and centre lines measured in frame 1 (branch_fit)
     # the crown's limbs: traced, or grown from a species where the video shows no bark (generate.limbs)
@@ -143,7 +144,7 @@ def check_settings(s: Settings) -> None:
     if not s.height_m > 0:
         raise InputError(f"tree height {s.height_m} m is not positive; give e.g. 10")
     check_twig_params(s.twigs)
-    check_params(MeshParams(curliness=s.curliness, bark=s.bark, forks=s.forks))
+    check_params(MeshParams(curliness=s.curliness, bark=s.bark, forks=s.forks, relief_cm=s.relief_cm))
     if s.leaves is not None:
         check_leaf_params(s.leaves)
     if s.limb_species and s.limbs != "trace":
@@ -287,7 +288,8 @@ def build_3d(res: Result, s: Settings | None = None, name: str = "Tree",
     meta: TreeMeta = {"height_px": height_px, "metres_per_px": scale, "solver": s.motion.solver,
             "conifer": lift_params.conifer, "form": res.form, "mu_deg": float(np.degrees(lifted.mu)),
             "envelope": envelope_to_meta(lifted.envelope, scale),
-            "mesh": {"curliness": float(s.curliness), "bark": s.bark, "seed": int(s.twigs.seed), "forks": s.forks},
+            "mesh": {"curliness": float(s.curliness), "bark": s.bark, "seed": int(s.twigs.seed), "forks": s.forks,
+                     "relief_cm": float(s.relief_cm)},
             "limbs": sk.kind,                                    # traced from the video, or grown
             **({"photo": {"species": photo.species or model.name, "seconds": float(photo.seconds),
                           "wind": float(photo.wind), "seed": int(photo.seed),

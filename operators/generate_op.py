@@ -224,6 +224,7 @@ class TREE_OT_generate(jobs.JobOperator, bpy.types.Operator):
             game = game_settings(context.scene.tree_video)
             built = build_tree(context, tree, name, curliness=context.scene.tree_video.curliness,
                                bark=context.scene.tree_video.bark, forks=context.scene.tree_video.forks,
+                               relief_cm=context.scene.tree_video.bark_relief,
                                keep_view=True,
                                bark_maps=species_bark(context.scene.tree_video, model), **build_kwargs(game))
             keep_engine_files(built, tree, game)
@@ -285,7 +286,8 @@ class TREE_OT_generate_forest(jobs.JobOperator, bpy.types.Operator):
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
         state = ForestBuild(context, self._name, *result, curliness=props.curliness, bark=props.bark,
-                            forks=props.forks, loop_s=props.loop_seconds, game=game_settings(props), bark_maps=bark_maps)
+                            forks=props.forks, relief_cm=props.bark_relief, loop_s=props.loop_seconds,
+                            game=game_settings(props), bark_maps=bark_maps)
         if self._timer is None and getattr(self, "_invoked", False):
             self._pending = state
             # still a running job while the trees are built: the other buttons stay greyed and

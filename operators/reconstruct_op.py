@@ -53,7 +53,8 @@ def panel_options(props) -> dict:
                 candidates=props.candidates, solver=props.solver, sigma_track=props.sigma_track,
                 sigma_shape=props.sigma_shape, max_step=props.max_step, max_total=props.max_total,
                 twigs=props.twig_depth, no_branch_fit=not props.fit_branches, curliness=props.curliness,
-                bark=props.bark, forks=props.forks, no_leaves=not props.build_leaves, depth=props.depth_source)
+                bark=props.bark, forks=props.forks, bark_relief=props.bark_relief,
+                no_leaves=not props.build_leaves, depth=props.depth_source)
     if props.build_leaves:
         flat.update(leaf_density=props.leaf_density, leaf_cards=props.leaf_cards,
                     max_leaf_clusters=props.max_leaf_clusters, flutter_hz=props.flutter_hz,

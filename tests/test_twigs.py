@@ -228,8 +228,8 @@ def test_pipeline_adds_twigs_after_the_motion_inside_the_envelope():
     twiggy = pipeline.build_3d(res, s)
     N = bare.n_nodes
     assert "twigs" not in bare.meta and bare.meta["mesh"] == {"curliness": 0.0, "bark": "none", "seed": 0,
-                                                             "forks": "joined"}
-    assert twiggy.meta["mesh"] == {"curliness": 0.4, "bark": "rough", "seed": 1, "forks": "joined"}
+                                                             "forks": "joined", "relief_cm": 0.0}
+    assert twiggy.meta["mesh"] == {"curliness": 0.4, "bark": "rough", "seed": 1, "forks": "joined", "relief_cm": 0.0}
     np.testing.assert_array_equal(twiggy.nodes3d[:, :N], bare.nodes3d)
     added = twiggy.meta["twigs"]["nodes_added"]
     assert added == twiggy.n_nodes - N > N // 4

@@ -192,6 +192,7 @@ class TREE_PT_output(_TreePanel, bpy.types.Panel):
         sub.prop(props, "curliness", slider=True)
         sub.prop(props, "bark")
         sub.prop(props, "forks")
+        sub.prop(props, "bark_relief")
         path_field(sub, props, "bark_image")
         if props.bark_image.strip():                 # the photo's bark: its moss, lichen and scale
             sub.prop(props, "bark_moss", slider=True)

@@ -14,7 +14,7 @@ SHIPPED_DIR = os.path.join(PACKAGE_DIR, "presets", PRESET_SUBDIR)
 #: settings a preset stores (not the per-shot paths, masks or names)
 PRESET_VALUES = ["levels", "skeleton_kind", "form", "limbs", "candidates", "solver", "sigma_track", "sigma_shape",
                  "max_step", "max_total", "height_m", "fit_branches", "build_mesh", "scale", "twig_depth", "curliness", "bark",
-                 "forks",
+                 "forks", "bark_relief",
                  "build_leaves", "leaf_density", "leaf_cards", "max_leaf_clusters", "flutter_hz", "flutter_gain",
                  "leaf_colour_mode", "leaf_colour_custom"]
 

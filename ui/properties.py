@@ -56,6 +56,7 @@ CORE_FIELDS = {
     "curliness": (MeshParams, "curliness"),
     "bark": (MeshParams, "bark"),
     "forks": (MeshParams, "forks"),
+    "bark_relief": (MeshParams, "relief_cm"),
     "leaf_density": (LeafParams, "density"),
     "leaf_cards": (LeafParams, "cards"),
     "max_leaf_clusters": (LeafParams, "max_clusters"),
@@ -267,6 +268,11 @@ class TreeVideoSettings(bpy.types.PropertyGroup):
                                     "continuing branch starts at the pipe model's radius"),
                ("overlap", "Overlap", "Each branch is its own tube, starting inside its parent")],
         description="How the branch tubes meet where the tree forks")
+    bark_relief: bpy.props.FloatProperty(name="Relief (cm)", **_core("bark_relief"),
+                                         description="The bark's height map (the photo's, or the procedural "
+                                                     "bark's) as geometry on the tubes: its depth on the trunk, "
+                                                     "thinner on thinner branches; in every export's first level "
+                                                     "(0: none; the tubes get at least 24 sides and 12 rings)")
     bark_image: bpy.props.StringProperty(name="Bark Image", subtype="FILE_PATH", **_blend_relative(),
                                          description="A close-up photo of the bark: the bark becomes a seamless "
                                                      "tile quilted from it (colour, relief, roughness) instead of the "

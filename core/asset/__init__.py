@@ -52,18 +52,21 @@ class TreeAsset:
 
 def tree_asset(tree: Tree3D, *, mesh: bool = True, leaves: bool = True, sides: int = 8,
                curliness: float | None = None, bark: str | None = None, leaf_image: str | None = None,
-               forks: str | None = None, every_key: bool = False, bone_budget: int | None = None, lods: int = 1,
+               forks: str | None = None, relief_cm: float | None = None,
+               relief_map: tuple[np.ndarray, int] | None = None, every_key: bool = False,
+               bone_budget: int | None = None, lods: int = 1,
                pivots: bool = False, collision: bool = False, as_levels: bool = False) -> TreeAsset:
     """Everything a writer copies of ``tree``: keys reduced within :data:`core.keys.KEY_TOLERANCE`
     (every frame with ``every_key``), the branch mesh with ``mesh``, the leaf bones and cards with
-    ``leaves`` (when the tree has clusters), the look (``sides``, ``curliness``, ``bark``, ``forks``
-    and ``leaf_image`` win over what the tree records, :func:`.look.tree_look`); ``bone_budget``: the
+    ``leaves`` (when the tree has clusters), the look (``sides``, ``curliness``, ``bark``, ``forks``,
+    ``relief_cm`` and ``leaf_image`` win over what the tree records, :func:`.look.tree_look`;
+    ``relief_map`` the photo bark's height and repeats for the relief, :func:`.meshes.branch_arrays`); ``bone_budget``: the
     rig cut to at most that many bones, its motion re-fitted (:func:`.budget.budget_rig`); ``lods``
     ≥ 2: that many levels of detail (:func:`.lod.tree_lods`) on the same rig; ``pivots``: the rig's
     Pivot Painter 2 elements (:func:`.pivot_painter.pivot_elements`); ``collision``: capsules of the
     trunk and main limbs (:func:`.collision.capsules`, from the full rig); ``as_levels``: ``lods``
     levels even for one (LOD0 alone: a card LOD, the impostor's, follows it)."""
-    look = tree_look(tree, sides, curliness, bark, leaf_image, forks)
+    look = tree_look(tree, sides, curliness, bark, leaf_image, forks, relief_cm)
     timings = {}
     t = time.perf_counter()
     # a budget that cuts the rig keys its re-fitted bones on every frame: no reduction to throw away
@@ -72,7 +75,7 @@ def tree_asset(tree: Tree3D, *, mesh: bool = True, leaves: bool = True, sides: i
     rig = tree_rig(tree, every_key or cut, leaves)
     timings["rig arrays"] = time.perf_counter() - t
     t = time.perf_counter()
-    branches = branch_arrays(tree, rig.rest, look.mesh) if mesh else None
+    branches = branch_arrays(tree, rig.rest, look.mesh, relief_map=relief_map) if mesh else None
     timings["mesh arrays"] = time.perf_counter() - t
     t = time.perf_counter()
     leafy = rig.leaf_keys is not None

@@ -190,7 +190,8 @@ def level_tubes(tree: Tree3D, rest: np.ndarray, look: Look, role: np.ndarray, th
     the sparsest setting is over, the thinnest tubes left out (twigs first, never the trunk).
     Returns the mesh, the thick and thin settings ``(sides, rings)``, how many tubes are thick,
     how many were left out."""
-    p0 = replace(look.mesh, forks="overlap")     # a level mixes two tube settings bone by bone
+    # a level mixes two tube settings bone by bone; its tubes too few to carry the bark's relief
+    p0 = replace(look.mesh, forks="overlap", relief_cm=0.0)
     B = len(rest)
     (ls, lk), (hs, hk) = tube_settings(p0.sides, p0.ring_count(), allowed / max(B, 1))
     lo_t, hi_t = tube_triangles(ls, lk), tube_triangles(hs, hk)

@@ -32,9 +32,9 @@ class Look:
 
 
 def mesh_params(tree, sides: int = 8, curliness: float | None = None, bark: str | None = None,
-                seed: int | None = None, forks: str | None = None) -> bm.MeshParams:
+                seed: int | None = None, forks: str | None = None, relief_cm: float | None = None) -> bm.MeshParams:
     """The branch mesh settings: the given ones, else those recorded in ``tree.meta["mesh"]``
-    (``curliness``, ``bark``, ``seed``, ``forks``; written by ``pipeline.build_3d`` and
+    (``curliness``, ``bark``, ``seed``, ``forks``, ``relief_cm``; written by ``pipeline.build_3d`` and
     ``growth.grow_tree``), else straight plain tubes (a tree made by hand, without a recorded look)
     with the default forks."""
     rec = tree.meta.get("mesh") or {}
@@ -42,7 +42,9 @@ def mesh_params(tree, sides: int = 8, curliness: float | None = None, bark: str 
                          curliness=float(rec.get("curliness", 0.0) if curliness is None else curliness),
                          bark=str(rec.get("bark", "none") if bark is None else bark),
                          seed=int(rec.get("seed", 0) if seed is None else seed),
-                         forks=str(rec.get("forks", bm.MeshParams.forks) if forks is None else forks))
+                         forks=str(rec.get("forks", bm.MeshParams.forks) if forks is None else forks),
+                         relief_cm=float(rec.get("relief_cm", bm.MeshParams.relief_cm) if relief_cm is None
+                                         else relief_cm))
 
 
 def bark_solid(colour=None) -> tuple:
@@ -69,9 +71,9 @@ def leaf_tint(leaves) -> np.ndarray:
 
 
 def tree_look(tree, sides: int = 8, curliness: float | None = None, bark: str | None = None,
-              leaf_image: str | None = None, forks: str | None = None) -> Look:
+              leaf_image: str | None = None, forks: str | None = None, relief_cm: float | None = None) -> Look:
     """The :class:`Look` of ``tree`` (the given settings win over the recorded ones)."""
-    params = mesh_params(tree, sides, curliness, bark, forks=forks)
+    params = mesh_params(tree, sides, curliness, bark, forks=forks, relief_cm=relief_cm)
     bm.check_params(params)
     colour = (tree.meta.get("bark_colour") or {}).get("colour")
     colour = None if colour is None else np.asarray(colour, np.float64)[:3]

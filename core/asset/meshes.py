@@ -4,12 +4,15 @@ cards with their flap, in typed arrays (no bpy). Every vertex is carried by one 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
 from ..detail import branch_mesh as bm
+from ..detail.bark_texture import bark_textures
 from ..detail.forks import pipe_heads
 from ..detail.leaf_clusters import flap_weights, leaf_flap_offsets, leaf_mesh
+from ..detail.relief import RELIEF_RINGS, RELIEF_SIDES, relief_offsets
 from ..tree3d import Tree3D
 from .look import Look
 
@@ -60,21 +63,43 @@ class LeafMesh:
         return len(self.co) // 4
 
 
-def branch_arrays(tree: Tree3D, rest: np.ndarray, params: bm.MeshParams, widen: float = 1.0) -> BranchMesh:
+def branch_arrays(tree: Tree3D, rest: np.ndarray, params: bm.MeshParams, widen: float = 1.0,
+                  relief_map: tuple[np.ndarray, int] | None = None) -> BranchMesh:
     """The :class:`BranchMesh` of ``tree`` at rest, its bones' rest rotations ``rest (B, 3, 3)``,
     radii × ``widen`` floored at 10⁻⁴ of the tree's size (no zero-width tube); joined forks follow
-    the tree's measured pipe exponent (:func:`pipe_exponent`)."""
+    the tree's measured pipe exponent (:func:`pipe_exponent`). With ``params.relief_cm`` > 0 the
+    bark's height map moves the vertices (:mod:`core.detail.relief`, on at least
+    :data:`~core.detail.relief.RELIEF_SIDES` sides and :data:`~core.detail.relief.RELIEF_RINGS`
+    rings): ``relief_map`` = ``(height (H, W) in [0, 1], repeats over the UV square)``, the photo
+    bark's; None: the procedural bark's (:func:`relief_height`)."""
     r_head, r_tail = (widen * r for r in bm.branch_radii(tree.parents, tree.radius))
     delta = pipe_exponent(tree)
     r_head = pipe_heads(tree.parents, r_head, r_tail, delta)      # every level: the joined forks' radii
     floor = 1e-4 * max(float(np.ptp(tree.nodes3d[0], axis=0).max()), 1e-3)
+    relief = float(params.relief_cm) > 0
+    sides, rings = params.sides, params.rings
+    if relief:
+        sides, rings = max(sides, RELIEF_SIDES), max(params.ring_count(), RELIEF_RINGS)
     g = bm.tube_arrays(tree.nodes3d[0], tree.parents, rest, np.maximum(r_head, floor),
-                       np.maximum(r_tail, floor), params.sides, curliness=params.curliness, bark=params.bark,
-                       rings=params.rings, seed=params.seed, forks=params.forks,
+                       np.maximum(r_tail, floor), sides, curliness=params.curliness, bark=params.bark,
+                       rings=rings, seed=params.seed, forks=params.forks,
                        pipe_exponent=delta)
+    if relief:
+        height, repeats = relief_map if relief_map is not None else (relief_height(params.bark), 1)
+        g["co"] = g["co"] + relief_offsets(g, height, repeats, float(params.relief_cm) / 100.0)[0]
     return BranchMesh(g["co"].astype(np.float32), g["loop_vert"].astype(np.int32), g["loop_start"].astype(np.int32),
                       g["loop_total"].astype(np.int32), np.asarray(g["smooth"], bool), g["uv"].astype(np.float32),
                       np.asarray(g["vert_bone"], np.int32))
+
+
+@lru_cache(maxsize=4)
+def relief_height(bark: str) -> np.ndarray:
+    """``(S, S)`` in [0, 1] (read-only, cached: a forest asks once): the procedural bark's height
+    map of kind ``bark``, the one its material's normal map is made from
+    (:func:`core.detail.bark_texture.bark_textures`)."""
+    height = bark_textures(None, bark).height
+    height.flags.writeable = False
+    return height
 
 
 def pipe_exponent(tree: Tree3D) -> float:

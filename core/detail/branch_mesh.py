@@ -51,7 +51,8 @@ class MeshParams:
     """Branch mesh settings: ``sides`` S ≥ 3 vertices per ring; ``curliness`` 0..1; ``bark`` one of
     :data:`BARK_KINDS`; ``rings`` K per bone (0 = automatic: 2 if straight, :data:`CURLY_RINGS`
     if curly); ``seed`` for the offsets and the bark; ``forks`` one of
-    :data:`FORK_KINDS` (how tubes meet at a node)."""
+    :data:`FORK_KINDS` (how tubes meet at a node); ``relief_cm`` the bark's height map as geometry,
+    its depth on the thickest tube in cm (0: none; :mod:`core.detail.relief`)."""
 
     sides: int = 8
     curliness: float = param(0.3, 0.0, 1.0, what="curliness")
@@ -59,6 +60,7 @@ class MeshParams:
     rings: int = 0
     seed: int = 0
     forks: str = param("joined", choices=FORK_KINDS, what="forks")
+    relief_cm: float = param(0.0, 0.0, 20.0, what="bark relief", unit="cm")
 
     def ring_count(self) -> int:
         if self.rings:

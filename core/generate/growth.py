@@ -123,6 +123,7 @@ class GrowParams:
     curliness: float = same_as(MeshParams, "curliness")
     bark: str = same_as(MeshParams, "bark")
     forks: str = same_as(MeshParams, "forks")
+    relief_cm: float = same_as(MeshParams, "relief_cm")
     loop_s: float = same_as(LoopSettings, "seconds")
     envelope_variation: float = param(0.0, 0.0, 1.0, what="--envelope-variation")
     allometry: bool = False
@@ -577,7 +578,7 @@ def grow_tree(model: SpeciesModel, envelope: Envelope, params: GrowParams | None
             "leaf_density": float(p.leaf_density), "node_budget": int(p.node_budget),
             "time_offset_s": float(p.time_offset_s), "sway_scale": float(sway_scale),
             "mesh": {"curliness": float(p.curliness), "bark": str(p.bark), "seed": int(p.seed),
-                     "forks": str(p.forks)}}
+                     "forks": str(p.forks), "relief_cm": float(p.relief_cm)}}
     if period_s is not None:
         meta["periodic"] = {"frames": int(n_frames - 1), "seconds": float(period_s)}
     if variation is not None:

@@ -33,7 +33,8 @@ MAX_NAME = 63
 def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = False,
                mesh: bool = True, sides: int = 8, leaves: bool = True,
                leaf_image: str | None = None, curliness: float | None = None,
-               bark: str | None = None, forks: str | None = None, materials: dict | None = None, update_frame: bool = True,
+               bark: str | None = None, forks: str | None = None, relief_cm: float | None = None,
+               materials: dict | None = None, update_frame: bool = True,
                keep_view: bool = False, every_key: bool = False, bone_budget: int | None = None,
                lods: int = 1, pivots: bool = False, collision: bool = False, impostor: bool = False,
                bark_maps=None) -> dict:
@@ -52,8 +53,9 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
     grows the range to cover ``1..F`` (:func:`.timing.fit_scene_timing`); with ``mesh``, a branch mesh
     ``"<name> Branches"`` (tapered tubes with ``sides`` sides, one vertex group per bone, Armature
     modifier, parented to the rig; ``curliness`` 0..1 and ``bark`` "none"/"smooth"/"rough" as in
-    :mod:`core.branch_mesh`, and ``forks`` "joined"/"overlap", None: from ``tree.meta["mesh"]``, see
-    :func:`mesh_params`) and a bark
+    :mod:`core.branch_mesh`, ``forks`` "joined"/"overlap" and ``relief_cm`` the bark's relief as
+    geometry, None: from ``tree.meta["mesh"]``, see :func:`mesh_params`; the relief follows
+    ``bark_maps``' height when given, its tiles as many as the bark material's) and a bark
     material ``"<name> Bark"``; with ``leaves`` and
     ``tree.leaves``, one bone per leaf cluster (``"L0000"``…, child of its branch bone, keyed with
     its flutter) and a skinned leaf mesh ``"<name> Leaves"`` with material ``"<name> Leaf"``
@@ -98,8 +100,16 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
         raise InputError(f"a collection named '{collection_name}' already exists; choose another name "
                          "or replace it (replace=True)")
     # everything Blender copies, computed in the core (rig, keys, meshes, look)
+    relief_map = None
+    if bark_maps is not None:          # the photo's height, as many tiles round the tube as its material has
+        from ...core.detail.bark_photo import uv_repeats
+        shared = (materials or {}).get("bark")
+        repeats = shared.get(mats.BARK_PHOTO_KEY) if shared is not None else None
+        relief_map = (bark_maps.textures.height,
+                      int(repeats) if repeats else uv_repeats(float(tree.radius[0]), bark_maps.scale_cm))
     asset = tree_asset(tree, mesh=mesh, leaves=leaves, sides=sides, curliness=curliness, bark=bark, forks=forks,
-                       leaf_image=leaf_image, every_key=every_key, bone_budget=bone_budget, lods=lods,
+                       relief_cm=relief_cm, relief_map=relief_map, leaf_image=leaf_image,
+                       every_key=every_key, bone_budget=bone_budget, lods=lods,
                        pivots=pivots, collision=collision,
                        as_levels=impostor)
     timings = dict(asset.timings)

@@ -25,19 +25,20 @@ class ForestBuild:
     at its position, turn and size, ``trees[slot.variant]`` built the first time its variant stands
     and instanced after that (:func:`.instances.instance_tree`, out of step by
     :func:`core.generate.forest.instance_offsets`); with the branch mesh's ``curliness``,
-    ``bark`` and ``forks``; all trees share the first one's bark and leaf materials; ``loop_s`` > 0 cuts each
+    ``bark``, ``forks`` and ``relief_cm``; all trees share the first one's bark and leaf materials; ``loop_s`` > 0 cuts each
     tree's motion to a seamless loop of about that many seconds (:func:`core.loop.maybe_loop`; a
     shared variant is looped over its own period when ``loop_s`` is 0); ``game`` the game settings
     each tree is built with (:mod:`.game`); ``bark_maps`` the bark from photos of bark (None:
     procedural). ``remove()`` undoes it all."""
 
     def __init__(self, context, name: str, model, trees, slots, *, curliness: float | None = None,
-                 bark: str | None = None, forks: str | None = None, loop_s: float = 0.0,
+                 bark: str | None = None, forks: str | None = None, relief_cm: float | None = None,
+                 loop_s: float = 0.0,
                  game: GameSettings | None = None, bark_maps=None):
         self.trees, self.slots, self.model = trees, slots, model
         self.game = game or GameSettings()
         self.curliness, self.bark, self.loop_s, self.bark_maps = curliness, bark, loop_s, bark_maps
-        self.forks = forks
+        self.forks, self.relief_cm = forks, relief_cm
         self.coll = bpy.data.collections.new(name)
         context.scene.collection.children.link(self.coll)
         self.built: list[dict] = []
@@ -104,6 +105,7 @@ class ForestBuild:
             with context.temp_override(scene=scratch, view_layer=scratch.view_layers[0]):
                 built = build_tree(bpy.context, tree, name, materials=self.materials,
                                    curliness=self.curliness, bark=self.bark, forks=self.forks,
+                                   relief_cm=self.relief_cm,
                                    update_frame=False,
                                    bark_maps=self.bark_maps, **build_kwargs(self.game))
             keep_engine_files(built, tree, self.game)

@@ -18,6 +18,7 @@ bpy.context.scene.tree_video.twig_depth = 0
 bpy.context.scene.tree_video.curliness = 0.3
 bpy.context.scene.tree_video.bark = 'rough'
 bpy.context.scene.tree_video.forks = 'joined'
+bpy.context.scene.tree_video.bark_relief = 0.0
 bpy.context.scene.tree_video.build_leaves = True
 bpy.context.scene.tree_video.leaf_density = 0.3
 bpy.context.scene.tree_video.leaf_cards = 16

@@ -1,0 +1,47 @@
+"""GUI run (issue 36 part 3): the broad sample's true tree built twice in the real Blender with
+rough bark, *Bark Relief* 0 (left: the relief only in the shading) and 5 cm (right: the bark's
+height map in the mesh), close on the trunk, posed mid-sway: Material Preview above, Solid below
+(the geometry alone, no normal map). For the README.
+
+    real-blender gui-shot OUT.png --size 1400x900 --wait 30 -- \
+        blender --factory-startup --python tests/gui/relief_shot.py
+"""
+import os
+import sys
+
+import bpy
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))   # this folder: _addon.py
+from _addon import empty_stage, material_view  # noqa: E402
+
+empty_stage()
+from tree_from_video.operators.scene import build  # noqa: E402
+
+from trees import broad_tree  # noqa: E402
+
+tree = broad_tree(48)
+GAP = 0.9
+plain = build.build_tree(bpy.context, tree, "Shaded", bark="rough", leaves=False)
+relief = build.build_tree(bpy.context, tree, "Relief", bark="rough", relief_cm=5.0, leaves=False)
+relief["armature"].location.x = GAP
+base = tree.nodes3d[0, 0].astype(float)
+print(f"polygons: shaded {len(plain['mesh'].data.polygons)}, relief {len(relief['mesh'].data.polygons)}", flush=True)
+
+
+def show():
+    if bpy.context.window.screen is None:
+        return 0.3
+    area = next(a for a in bpy.context.window.screen.areas if a.type == "VIEW_3D")
+    space = area.spaces.active
+    material_view(space, (base[0] + GAP / 2, base[1], base[2] + 0.6), 1.9,
+                  (0.74, 0.67, 0.06, 0.06))                # from the front, a little from above
+    if "solid" in sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else False:
+        space.shading.type = "SOLID"
+        space.shading.light = "STUDIO"
+        space.shading.color_type = "MATERIAL"
+    bpy.context.scene.frame_set(20)
+    print("ui ready", flush=True)
+    return None
+
+
+bpy.app.timers.register(show, first_interval=1.0)
