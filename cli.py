@@ -29,6 +29,7 @@ from .core.asset.game import ENGINES, GameSettings
 from .core.detail.bark_photo import BarkPhotoParams, bark_maps, read_bark_files, read_bark_photo, write_bark_files
 from .core.detail.branch_mesh import MeshParams
 from .core.detail.leaf_clusters import LeafParams
+from .core.detail.relief import RELIEF_RINGS, RELIEF_SIDES
 from .core.detail.trunk_strip import VIDEO_BARK
 from .core.detail.twigs import TwigParams
 from .core.envelope import envelope_from_meta
@@ -151,8 +152,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "model's radius) or overlap (tubes that run into their parent) (default %(default)s)")
     p.add_argument("--bark-relief", type=float, default=_default(M, "relief_cm"), metavar="CM",
                    help=f"the bark's height map as geometry on the tubes, its depth on the trunk in cm, "
-                        f"{_range(M, 'relief_cm')} (default %(default)s: none); the tubes get at least 24 sides and "
-                        "12 rings a bone, LOD1+ keep none")
+                        f"{_range(M, 'relief_cm')} (default %(default)s: none); the tubes get at least {RELIEF_SIDES} "
+                        f"sides and {RELIEF_RINGS} rings a bone, LOD1+ keep none")
     B = BarkPhotoParams
     p.add_argument("--bark-image", action="append", metavar="PHOTO",
                    help="a close-up photo of the bark (repeat for several): the bark becomes a seamless tile "

@@ -20,6 +20,7 @@ from trees import (
     binary_tree,
     broad_tree,
     empty_scene,  # noqa: F401  (autouse fixture)
+    rig_rest,
 )
 
 pytestmark = [pytest.mark.blender, pytest.mark.bpy53]
@@ -215,7 +216,7 @@ def test_built_mesh_counts_weights_and_closure(tree):
     ob = res["mesh"]
     B, K, S = len(tree.edges()), bm.CURLY_RINGS, 8
     me = ob.data
-    ref = branch_arrays(tree, _rest(res["armature"], tree), bm.MeshParams(curliness=0.6, bark="rough"))
+    ref = branch_arrays(tree, rig_rest(res["armature"], tree), bm.MeshParams(curliness=0.6, bark="rough"))
     assert len(me.vertices) == K * S * B and len(me.polygons) == len(ref.loop_total)     # joined forks
     group, weight = _weights(ob)
     assert (group >= 0).all() and (weight == 1.0).all()                        # every vertex weighted
@@ -227,14 +228,6 @@ def test_built_mesh_counts_weights_and_closure(tree):
     loop_vert = np.empty(len(me.loops), np.int32)
     me.loops.foreach_get("vertex_index", loop_vert)
     np.testing.assert_array_equal(loop_vert, ref.loop_vert)
-
-
-def _rest(rig, tree):
-    flat = np.empty(len(rig.data.bones) * 16, np.float32)
-    rig.data.bones.foreach_get("matrix_local", flat)
-    mats = flat.reshape(-1, 4, 4).transpose(0, 2, 1)
-    order = {b.name: i for i, b in enumerate(rig.data.bones)}
-    return mats[[order[n] for n in bones.bone_names(tree.parents)], :3, :3].astype(np.float64)
 
 
 def test_mesh_settings_come_from_the_tree_meta(tree):

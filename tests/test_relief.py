@@ -48,7 +48,7 @@ def test_offsets_follow_the_formula_on_a_hand_fork():
     col = 0.5 + 0.5 * np.sin(2 * np.pi * 4 * (np.arange(W) + 0.5) / W)
     height = np.tile(col, (8, 1))
     depth = 0.02
-    off, h01 = relief_offsets(g, height, 1, depth)
+    off = relief_offsets(g, height, 1, depth)
     B, K, S = len(g["r0"]), int(g["rings"]), int(g["sides"])
     co = g["co"].reshape(B, K, S, 3)
     radial = co - g["centre"][:, :, None]
@@ -74,7 +74,6 @@ def test_offsets_follow_the_formula_on_a_hand_fork():
     assert not plan.tail_cap[0] and np.abs(along[0, -1]).max() == 0.0        # the trunk's junction ring stays
     assert np.abs(along[0, K // 2]).max() > 0.4 * depth * w[0, K // 2]      # and the trunk's middle moves
     np.testing.assert_allclose(along.mean(axis=-1), 0.0, atol=1e-12)          # each ring keeps its mean radius
-    assert 0.0 <= h01.min() and h01.max() <= 1.0
 
 
 @pytest.fixture(scope="module")

@@ -9,7 +9,6 @@ from fbx_reader import child, read_fbx, top
 from scipy.spatial import cKDTree
 from test_exports import accessor, read_glb
 
-from tree_from_video.core import bones
 from tree_from_video.core.asset.meshes import branch_arrays
 from tree_from_video.core.detail import branch_mesh as bm
 from tree_from_video.core.detail.relief import RELIEF_RINGS, RELIEF_SIDES
@@ -18,19 +17,12 @@ from tree_from_video.operators.scene import build, export
 from trees import (
     broad_tree,
     empty_scene,  # noqa: F401  (autouse fixture)
+    rig_rest,
 )
 
 pytestmark = [pytest.mark.blender, pytest.mark.bpy53]
 
 DEPTH_CM = 3.0
-
-
-def _rest(rig, tree):
-    flat = np.empty(len(rig.data.bones) * 16, np.float32)
-    rig.data.bones.foreach_get("matrix_local", flat)
-    mats = flat.reshape(-1, 4, 4).transpose(0, 2, 1)
-    order = {b.name: i for i, b in enumerate(rig.data.bones)}
-    return mats[[order[n] for n in bones.bone_names(tree.parents)], :3, :3].astype(np.float64)
 
 
 def _matches(found, want, tol):
@@ -41,7 +33,7 @@ def _matches(found, want, tol):
 def test_relief_in_blender_gltf_and_fbx(tmp_path):
     tree = broad_tree(6)
     res = build.build_tree(bpy.context, tree, "Tree", curliness=0.3, bark="rough", relief_cm=DEPTH_CM, leaves=False)
-    rest = _rest(res["armature"], tree)
+    rest = rig_rest(res["armature"], tree)
     want = branch_arrays(tree, rest, bm.MeshParams(curliness=0.3, bark="rough", relief_cm=DEPTH_CM)).co
     smooth = branch_arrays(tree, rest, bm.MeshParams(curliness=0.3, bark="rough", sides=RELIEF_SIDES,
                                                      rings=RELIEF_RINGS)).co

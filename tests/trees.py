@@ -59,6 +59,15 @@ def binary_tree(n_bones: int = 127, frames: int = 300, fps: float = 30.0, seed: 
                   fps, "Binary")
 
 
+def rig_rest(rig, tree: Tree3D) -> np.ndarray:
+    """``(B, 3, 3)`` the rest rotations of the built rig's branch bones, in the tree's bone order."""
+    flat = np.empty(len(rig.data.bones) * 16, np.float32)
+    rig.data.bones.foreach_get("matrix_local", flat)
+    mats = flat.reshape(-1, 4, 4).transpose(0, 2, 1)
+    order = {b.name: i for i, b in enumerate(rig.data.bones)}
+    return mats[[order[n] for n in bones.bone_names(tree.parents)], :3, :3].astype(np.float64)
+
+
 def tree_height(tree: Tree3D) -> float:
     """Height (m) of frame 0: the tolerance scale."""
     return float(np.ptp(tree.nodes3d[0][:, 2]))

@@ -10,6 +10,7 @@ from ..core.asset.game import ENGINES, GameSettings, preset
 from ..core.detail.bark_photo import BarkPhotoParams
 from ..core.detail.branch_mesh import MeshParams
 from ..core.detail.leaf_clusters import LeafParams
+from ..core.detail.relief import RELIEF_RINGS, RELIEF_SIDES
 from ..core.detail.twigs import TwigParams
 from ..core.formats import by_flag, interchange
 from ..core.generate.batch import GenerateRequest
@@ -272,7 +273,8 @@ class TreeVideoSettings(bpy.types.PropertyGroup):
                                          description="The bark's height map (the photo's, or the procedural "
                                                      "bark's) as geometry on the tubes: its depth on the trunk, "
                                                      "thinner on thinner branches; in every export's first level "
-                                                     "(0: none; the tubes get at least 24 sides and 12 rings)")
+                                                     f"(0: none; the tubes get at least {RELIEF_SIDES} sides and "
+                                                     f"{RELIEF_RINGS} rings)")
     bark_image: bpy.props.StringProperty(name="Bark Image", subtype="FILE_PATH", **_blend_relative(),
                                          description="A close-up photo of the bark: the bark becomes a seamless "
                                                      "tile quilted from it (colour, relief, roughness) instead of the "

@@ -86,7 +86,7 @@ def branch_arrays(tree: Tree3D, rest: np.ndarray, params: bm.MeshParams, widen: 
                        pipe_exponent=delta)
     if relief:
         height, repeats = relief_map if relief_map is not None else (relief_height(params.bark), 1)
-        g["co"] = g["co"] + relief_offsets(g, height, repeats, float(params.relief_cm) / 100.0)[0]
+        g["co"] = g["co"] + relief_offsets(g, height, repeats, float(params.relief_cm) / 100.0)
     return BranchMesh(g["co"].astype(np.float32), g["loop_vert"].astype(np.int32), g["loop_start"].astype(np.int32),
                       g["loop_total"].astype(np.int32), np.asarray(g["smooth"], bool), g["uv"].astype(np.float32),
                       np.asarray(g["vert_bone"], np.int32))

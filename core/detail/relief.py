@@ -57,10 +57,9 @@ def mesh_band(height: np.ndarray, sigma_u: float, sigma_v: float) -> np.ndarray:
     return np.fft.ifft2(np.fft.fft2(np.asarray(height, np.float64)) * gain).real
 
 
-def relief_offsets(g: dict, height: np.ndarray, repeats: int, relief_m: float) -> tuple[np.ndarray, np.ndarray]:
+def relief_offsets(g: dict, height: np.ndarray, repeats: int, relief_m: float) -> np.ndarray:
     """The vertices' offsets ``(V, 3)`` metres for the tubes ``g`` of
-    :func:`~.branch_mesh.tube_arrays` (module docstring) and each vertex's low-passed height in
-    [0, 1] ``(V,)``."""
+    :func:`~.branch_mesh.tube_arrays` (module docstring)."""
     K, S = int(g["rings"]), int(g["sides"])
     B = len(g["r0"])
     H, W = height.shape
@@ -73,9 +72,7 @@ def relief_offsets(g: dict, height: np.ndarray, repeats: int, relief_m: float) -
     u = np.broadcast_to(np.arange(S) / S, (B, K, S))
     v = np.broadcast_to(g["v"][..., None], (B, K, S))
     h = sample_periodic(height, np.stack([u.ravel(), v.ravel()], axis=1), repeats)
-    lo, hi = float(height.min()), float(height.max())
-    span = max(hi - lo, 1e-9)
-    h01 = (h - lo) / span
+    span = max(float(np.ptp(height)), 1e-9)
     centred = (h - float(np.mean(height))) / span
     r0 = np.asarray(g["r0"], np.float64)
     w = r0 / max(float(r0.max()), 1e-12)                                 # (B, K)
@@ -84,5 +81,4 @@ def relief_offsets(g: dict, height: np.ndarray, repeats: int, relief_m: float) -
         ramp = np.minimum(np.arange(K), FADE_RINGS) / FADE_RINGS
         w = w * np.where(plan.head_cap[:, None], 1.0, ramp[None]) * np.where(plan.tail_cap[:, None], 1.0, ramp[::-1][None])
     scale = np.broadcast_to(w[..., None], (B, K, S)).ravel()
-    off = radial.reshape(-1, 3) * (relief_m * centred * scale)[:, None]
-    return off, h01.astype(np.float32)
+    return radial.reshape(-1, 3) * (relief_m * centred * scale)[:, None]

@@ -44,6 +44,29 @@ def material_view(space, location, distance: float, rotation=(0.71, 0.70, 0.0, 0
     r3d.view_distance = distance
 
 
+def show_material(location, distance: float, rotation=(0.71, 0.70, 0.0, 0.0), frame: int | None = None,
+                  solid: bool = False) -> None:
+    """Once the window is up (a ``bpy.app.timers`` callback, retried until then): the first 3D view
+    in :func:`material_view` at ``location``, ``distance``, ``rotation``; ``solid``: Solid shading
+    with studio light and the materials' colours instead (the geometry without its maps); then
+    ``frame`` (None: the current one) and "ui ready" printed."""
+    def show():
+        if bpy.context.window.screen is None:
+            return 0.3
+        area = next(a for a in bpy.context.window.screen.areas if a.type == "VIEW_3D")
+        space = area.spaces.active
+        material_view(space, location, distance, rotation)
+        if solid:
+            space.shading.type = "SOLID"
+            space.shading.light = "STUDIO"
+            space.shading.color_type = "MATERIAL"
+        if frame is not None:
+            bpy.context.scene.frame_set(frame)
+        print("ui ready", flush=True)
+        return None
+    bpy.app.timers.register(show, first_interval=1.0)
+
+
 def open_tree_tab(set_view, frame: int = 30):
     """A ``bpy.app.timers`` callback: open the 3D view's sidebar on the "Tree" tab (retrying until
     the tab list exists), solid shading, ``set_view(space, region_3d)`` for the camera, then go to

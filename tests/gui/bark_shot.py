@@ -13,7 +13,7 @@ import bpy
 import cv2
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))   # this folder: _addon.py
-from _addon import empty_stage, material_view  # noqa: E402
+from _addon import empty_stage, show_material  # noqa: E402
 
 empty_stage()
 from bark_photos import bark_photo  # noqa: E402
@@ -34,13 +34,4 @@ print(f"bark tile: moss {maps.moss[0]:.1%} -> {maps.moss[1]:.1%}, lichen {maps.l
       flush=True)
 
 
-def show():
-    if bpy.context.window.screen is None:
-        return 0.3
-    area = next(a for a in bpy.context.window.screen.areas if a.type == "VIEW_3D")
-    material_view(area.spaces.active, (0.5, 0.0, 0.7), 1.9)
-    print("ui ready", flush=True)
-    return None
-
-
-bpy.app.timers.register(show, first_interval=1.0)
+show_material((0.5, 0.0, 0.7), 1.9)

@@ -12,7 +12,7 @@ import bpy
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))   # this folder: _addon.py
-from _addon import empty_stage, material_view  # noqa: E402
+from _addon import empty_stage, show_material  # noqa: E402
 
 empty_stage()
 from tree_from_video.core import bones  # noqa: E402
@@ -33,15 +33,5 @@ print(f"first fork at node {first}, {focus.round(3)} m; polygons: overlap {len(o
       f"joined {len(joined['mesh'].data.polygons)}", flush=True)
 
 
-def show():
-    if bpy.context.window.screen is None:
-        return 0.3
-    area = next(a for a in bpy.context.window.screen.areas if a.type == "VIEW_3D")
-    material_view(area.spaces.active, (focus[0] + GAP / 2, focus[1], focus[2] + 0.12), 1.6,
-                  (0.72, 0.69, 0.03, 0.03))                # from the front, a little from above
-    bpy.context.scene.frame_set(20)
-    print("ui ready", flush=True)
-    return None
-
-
-bpy.app.timers.register(show, first_interval=1.0)
+show_material((focus[0] + GAP / 2, focus[1], focus[2] + 0.12), 1.6, (0.72, 0.69, 0.03, 0.03),   # from the front,
+              frame=20)                                                                         # a little from above

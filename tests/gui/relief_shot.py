@@ -12,7 +12,7 @@ import sys
 import bpy
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))   # this folder: _addon.py
-from _addon import empty_stage, material_view  # noqa: E402
+from _addon import empty_stage, show_material  # noqa: E402
 
 empty_stage()
 from tree_from_video.operators.scene import build  # noqa: E402
@@ -28,20 +28,6 @@ base = tree.nodes3d[0, 0].astype(float)
 print(f"polygons: shaded {len(plain['mesh'].data.polygons)}, relief {len(relief['mesh'].data.polygons)}", flush=True)
 
 
-def show():
-    if bpy.context.window.screen is None:
-        return 0.3
-    area = next(a for a in bpy.context.window.screen.areas if a.type == "VIEW_3D")
-    space = area.spaces.active
-    material_view(space, (base[0] + GAP / 2, base[1], base[2] + 0.6), 1.9,
-                  (0.74, 0.67, 0.06, 0.06))                # from the front, a little from above
-    if "solid" in sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else False:
-        space.shading.type = "SOLID"
-        space.shading.light = "STUDIO"
-        space.shading.color_type = "MATERIAL"
-    bpy.context.scene.frame_set(20)
-    print("ui ready", flush=True)
-    return None
-
-
-bpy.app.timers.register(show, first_interval=1.0)
+solid = "--" in sys.argv and "solid" in sys.argv[sys.argv.index("--") + 1:]
+show_material((base[0] + GAP / 2, base[1], base[2] + 0.6), 1.9, (0.74, 0.67, 0.06, 0.06),   # from the front,
+              frame=20, solid=solid)                                                    # a little from above
