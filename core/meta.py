@@ -44,6 +44,7 @@ class TreeMeta(TypedDict, total=False):
     loop: dict[str, Any]
     periodic: dict[str, Any]
     envelope_variation: dict[str, Any]
+    cuts: list[dict[str, Any]]
     tree_map: dict[str, Any]
     allometry: dict[str, Any]
     base_px: list[float]
@@ -119,6 +120,10 @@ KEYS: dict[str, Key] = {
     "envelope_variation": Key("{variation, weights, width_over_height, leaf_colour}", ("growth.grow_tree",),
                               "the tree's own crown and leaf colour (--envelope-variation, crown_space.py): "
                               "V, the contour space's weights, width over height source -> varied, the sRGB colour"),
+    "cuts": Key("[{file, source, bones, base_node, first_node, nodes, at, placed, roll_deg, inside_share, "
+                "clearance_m, taken_off, regrown}]", ("growth.grow_tree",),
+                "tree-cuts placed in a generated tree (generate/cuts.py): cut k's nodes are first_node.. "
+                "first_node + bones - 1, hung from base_node; at metres or where it fits"),
     "periodic": Key("{frames, seconds}", ("growth.grow_tree",),
                     "a generated tree's sway repeats after these frames (whole-period frequencies): "
                     "a loop by construction, its last frame the first"),

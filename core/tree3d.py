@@ -127,16 +127,22 @@ def last_key_frame(tree: Tree3D) -> int:
     return max(tree.n_frames, int(np.ceil(float(key_frames(tree)[-1]) - 1e-6)))
 
 
-def pipe_radii(parents: np.ndarray, tip_radius: float, exponent: float = 2.0) -> np.ndarray:
+def pipe_radii(parents: np.ndarray, tip_radius: float, exponent: float = 2.0,
+               fixed: np.ndarray | None = None) -> np.ndarray:
     """Pipe-model radii: tips get ``tip_radius``; ``r_parent^e = Σ r_child^e`` (e ≈ 2), and a node
-    on a chain (one child) keeps its child's radius. Returns ``(N,)``."""
+    on a chain (one child) keeps its child's radius. ``fixed (N,)`` metres (nan: free): those
+    nodes keep their radius and pass it on in place of what hangs below them (a placed cut's).
+    Returns ``(N,)``."""
     from .topology import topological_order
     r = np.zeros(len(parents))
     has_child = np.zeros(len(parents), bool)
     has_child[parents[parents >= 0]] = True
     r[~has_child] = tip_radius ** exponent
     acc = np.where(has_child, 0.0, r)
+    hold = np.zeros(len(parents), bool) if fixed is None else np.isfinite(fixed)
     for n in topological_order(parents)[::-1]:       # leaves first
+        if hold[n]:
+            acc[n] = float(fixed[n]) ** exponent     # type: ignore[index]
         p = parents[n]
         if p >= 0:
             acc[p] += acc[n]

@@ -210,7 +210,8 @@ def twig_rotations(driver_q: np.ndarray, lag: int, attenuation: float, period: i
 
 def add_twigs(tree: Tree3D, params: TwigParams | None = None,
               progress: ProgressFn | None = None, tree_px: np.ndarray | None = None,
-              inside: Callable[[np.ndarray], np.ndarray] | None = None) -> Tree3D:
+              inside: Callable[[np.ndarray], np.ndarray] | None = None,
+              bare: np.ndarray | None = None) -> Tree3D:
     """A new :class:`Tree3D` with twigs appended (see the module docstring).
 
     The original nodes keep their indices (so bones ``B{child:03d}`` of the reconstructed tree keep
@@ -223,7 +224,8 @@ def add_twigs(tree: Tree3D, params: TwigParams | None = None,
     ``meta["metres_per_px"]``, a twig must also lie over the tree in frame 1 (see
     :func:`on_tree_pixels`): where the video shows sky, it shows no twig. ``inside(pts (..., 3)
     metres) -> (...) bool`` is one more test every twig must pass (a generated tree's drawn
-    outline, which the envelope's surface of revolution only bounds)."""
+    outline, which the envelope's surface of revolution only bounds). ``bare (N,)`` bool: tips that
+    grow no twigs (a placed tree-cut's: it stays as it was saved)."""
     p = params or TwigParams()
     if p.depth <= 0:
         return tree
@@ -244,7 +246,7 @@ def add_twigs(tree: Tree3D, params: TwigParams | None = None,
 
     # generation-1 frontier: the tips of the reconstructed tree
     n_child = np.bincount(parents[parents >= 0], minlength=N)
-    tips = np.flatnonzero((n_child == 0) & (parents >= 0))
+    tips = np.flatnonzero((n_child == 0) & (parents >= 0) & (True if bare is None else ~np.asarray(bare, bool)))
     anchors = (parents < 0) | (n_child != 1)
     ch = chains(parents, rest, anchors)
     f_node = tips

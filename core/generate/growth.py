@@ -39,7 +39,7 @@ from __future__ import annotations
 
 import math
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -56,11 +56,17 @@ from ..reconstruct.lift import LiftParams, lift
 from ..reconstruct.skeleton2d import Skeleton2D
 from ..topology import branching_level
 from ..tree3d import Tree3D, pipe_radii
+from ..tree_cut import load_cut
 from .allometry import allometry_report, holton_pose
 from .crown_space import contour_space, varied_envelope, varied_leaf_colour
+from .cuts import CutSpec, place_cuts
 from .envelopes import RASTER_ROWS, Region2D, envelope_meta, region_of
-from .species import SpeciesModel, library_contours, sway_excursion
+from .species import SpeciesModel, library_contours
 from .sway import forward_kinematics, sample_rotations
+from .sway_fit import SWAY_OUTSIDE as SWAY_OUTSIDE  # re-exported: the sway's bounds, read by the tests
+from .sway_fit import SWAY_OUTSIDE_FRAME as SWAY_OUTSIDE_FRAME
+from .sway_fit import SWAY_SLACK as SWAY_SLACK
+from .sway_fit import contain_sway, match_excursion
 from .wind import audio_envelope, gain_curve
 
 MIN_ANGLE = np.radians(10.0)
@@ -93,7 +99,9 @@ class GrowParams:
     first (``meta["periodic"]``; :func:`core.loop.loop_tree` then blends nothing);
     ``envelope_variation`` 0..1: the tree grows in its own crown around the envelope's and its
     leaves take their own colour within the species' range (:mod:`.crown_space`; 0: the envelope
-    and colour as given), recorded in ``meta["envelope_variation"]``."""
+    and colour as given), recorded in ``meta["envelope_variation"]``; ``allometry`` Holton's angles
+    at the forks; ``cuts`` tree-cuts the tree must contain (:mod:`.cuts`: each at its point or where
+    it fits; the growth's budget less their bones, the rest grown around them), in ``meta["cuts"]``."""
 
     seed: int = 0
     height_m: float | None = None
@@ -127,6 +135,7 @@ class GrowParams:
     loop_s: float = same_as(LoopSettings, "seconds")
     envelope_variation: float = param(0.0, 0.0, 1.0, what="--envelope-variation")
     allometry: bool = False
+    cuts: tuple[CutSpec, ...] = ()
 
 
 @dataclass
@@ -395,104 +404,39 @@ def lift_grown(g: Grown2D, region: Region2D, conifer: bool, p: GrowParams,
     return nodes, lifted
 
 
-#: the swaying crown stays in its envelope: at most this share of the node-frames that start inside
-#: may leave it by more than ``SWAY_SLACK`` × the tree's height
-SWAY_OUTSIDE = 0.005
-#: ... and in no frame more than this share of them
-SWAY_OUTSIDE_FRAME = 0.02
-SWAY_SLACK = 0.02
-
-
-def match_excursion(parents: np.ndarray, rest: np.ndarray, rot: np.ndarray, target: float | None) -> float:
-    """The factor on the sampled sway ``rot (F, N, 3)`` (radians, about ``rest (N, 3)`` metres) that
-    makes the tree's :func:`~.species.sway_excursion` the source's ``target`` (share of the height;
-    None or 0: 1). The spectra give each node its own amplitude and phase, but how much of the
-    sway adds up along a chain of bones depends on how the source's motion was split between
-    neighbouring bones; the excursion is what a viewer compares. Two secant steps (forward
-    kinematics is nearly linear in the factor at these angles), within [1/4, 4]."""
-    if not target or target <= 0:
-        return 1.0
-    H = float(max(rest[:, 2].max(), 1e-6))
-    factor = 1.0
-    for _ in range(2):
-        got = sway_excursion(forward_kinematics(parents, rest, rot * factor), H)
-        if got <= 1e-12:
-            return 1.0
-        factor = float(np.clip(factor * target / got, 0.25, 4.0))
-    return factor
-
-
-def contain_sway(parents: np.ndarray, rest: np.ndarray, rot: np.ndarray, region: Region2D) -> tuple[np.ndarray, float]:
-    """Forward kinematics of the sway ``rot (F, N, 3)`` about ``rest (N, 3)`` metres, with the
-    rotations scaled down by one factor for the tree (bisection, 6 steps) where the sway would carry
-    more than :data:`SWAY_OUTSIDE` of the node-frames (or :data:`SWAY_OUTSIDE_FRAME` of the nodes in
-    one frame) more than :data:`SWAY_SLACK` of the height outside the envelope ``region`` (x, z:
-    the picture plane, where the artist drew it; in depth Ω is only a surface of revolution of that
-    drawing, and holding the sway to it took a quarter of a species' sway) — the species' own sway
-    fits the artist's silhouette (the wind
-    strength scales it on top). Returns ``(nodes3d (F, N, 3), factor)``; the factor is 1 for a sway
-    that stays inside."""
-    import cv2
-    H = float(max(rest[:, 2].max(), 1e-6))
-    grow_px = int(np.ceil(SWAY_SLACK * H / region.cell))
-    disk = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * grow_px + 1,) * 2)   # slack in every direction
-    near = cv2.dilate(region.full.astype(np.uint8), disk).astype(bool)
-
-    def inside(p: np.ndarray) -> np.ndarray:
-        return region.sample(near, p[..., [0, 2]])
-
-    start = inside(rest)
-
-    def contained(nodes: np.ndarray) -> bool:
-        if not start.any():
-            return True
-        per_frame = (~inside(nodes[:, start])).mean(axis=1)
-        return bool(per_frame.mean() <= SWAY_OUTSIDE and per_frame.max() <= SWAY_OUTSIDE_FRAME)
-
-    nodes3d = forward_kinematics(parents, rest, rot)
-    if contained(nodes3d):
-        return nodes3d, 1.0
-    lo, hi, best = 0.0, 1.0, None
-    for _ in range(6):
-        mid = 0.5 * (lo + hi)
-        cand = forward_kinematics(parents, rest, rot * mid)
-        if contained(cand):
-            lo, best = mid, cand
-        else:
-            hi = mid
-    if best is None:
-        return forward_kinematics(parents, rest, rot * 0.0), 0.0
-    return best, lo
-
-
 def species_radii(parents: np.ndarray, height: float, widths: tuple | None, tip: float | None = None,
-                  exponent: float | None = None) -> np.ndarray:
+                  exponent: float | None = None, fixed: np.ndarray | None = None) -> np.ndarray:
     """Pipe-model radii ``(N,)`` metres (``r_parent^e = Σ r_child^e``) of a tree ``height`` m
     tall. With the source's ``widths = (trunk, tip)`` (shares of the height): tips ``tip·H`` and
     the exponent that makes the trunk base ``trunk·H`` (n tips of one radius give a trunk of
     ``tip · n^(1/e)``, so ``e = ln n / ln(trunk / tip)``, kept in [1.5, 4]), then scaled so the
-    trunk base is exactly ``trunk·H``. ``tip`` / ``exponent`` given override the fit."""
+    trunk base is exactly ``trunk·H``. ``tip`` / ``exponent`` given override the fit. ``fixed (N,)``
+    metres (nan: free): placed cuts' radii, kept, and the branches carrying them thickened to carry
+    them (the tips as thick as without them: the fit is made on the tree as it is)."""
     if widths is None:
-        return pipe_radii(parents, (0.0025 if tip is None else tip) * height, 2.0 if exponent is None else exponent)
-    trunk, tip_w = float(widths[0]), float(widths[1]) if tip is None else float(tip)
-    n_tips = max(int(len(parents) - len(np.unique(parents[parents >= 0]))), 1)
-    e = exponent
-    if e is None:
+        tip_m, e = (0.0025 if tip is None else tip) * height, 2.0 if exponent is None else exponent
+    else:
+        trunk, tip_w = float(widths[0]), float(widths[1]) if tip is None else float(tip)
+        n_tips = max(int(len(parents) - len(np.unique(parents[parents >= 0]))), 1)
         ratio = trunk / max(tip_w, 1e-12)
-        e = float(np.clip(np.log(n_tips) / np.log(ratio), 1.5, 4.0)) if ratio > 1 and n_tips > 1 else 2.0
-    r = pipe_radii(parents, tip_w * height, e)
-    if exponent is None and tip is None and r[0] > 0:
-        r = r * (trunk * height / float(r[0]))
-    return r.astype(np.float32)
+        e = (float(np.clip(np.log(n_tips) / np.log(ratio), 1.5, 4.0)) if ratio > 1 and n_tips > 1 else 2.0) \
+            if exponent is None else float(exponent)
+        tip_m = tip_w * height
+        if exponent is None and tip is None:          # scaled so the trunk base is trunk·H (radii scale with the tips')
+            r0 = float(pipe_radii(parents, tip_m, e)[0])
+            tip_m = tip_m * (trunk * height / r0) if r0 > 0 else tip_m
+    return pipe_radii(parents, tip_m, e, fixed).astype(np.float32)
 
 
-def with_twigs(tree: Tree3D, rest: np.ndarray, region: Region2D, params: TwigParams) -> Tree3D:
+def with_twigs(tree: Tree3D, rest: np.ndarray, region: Region2D, params: TwigParams,
+               bare: np.ndarray | None = None) -> Tree3D:
     """``tree`` with twigs (:func:`..detail.twigs.add_twigs`) laid out on its rest pose ``rest
     (N, 3)`` metres, whatever its first frame's sway (so the wind does not change them), inside
-    the drawn outline ``region`` as well as the envelope, and riding on the tree's motion from rest."""
+    the drawn outline ``region`` as well as the envelope, and riding on the tree's motion from rest;
+    none on the tips ``bare (N,)`` marks (a placed cut's, which keeps its own)."""
     first = Tree3D(tree.parents, np.concatenate([rest[None], tree.nodes3d]).astype(np.float32), tree.radius,
                    tree.level, tree.fps, tree.name, tree.meta)
-    out = add_twigs(first, params, inside=lambda pts: region.contains(pts[..., [0, 2]]))
+    out = add_twigs(first, params, inside=lambda pts: region.contains(pts[..., [0, 2]]), bare=bare)
     out.nodes3d = out.nodes3d[1:]
     return out
 
@@ -538,6 +482,10 @@ def grow_tree(model: SpeciesModel, envelope: Envelope, params: GrowParams | None
     region = region_of(env)
     report(progress, "growing", 0.0)
     palm = model.palm if model.form == "palm" else None
+    if palm and p.cuts:
+        raise InputError(f"tree-cuts go in branching trees; species '{model.name}' grows palms (fronds on a stem): "
+                         "drop the cuts or pick another species")
+    fixed, cut_info, cuts = None, None, []
     if palm:
         from .palm import grow_palm
         par, rest = grow_palm(palm, env, rng_grow)
@@ -545,7 +493,9 @@ def grow_tree(model: SpeciesModel, envelope: Envelope, params: GrowParams | None
         mu = math.radians(model.mu_deg)
         report(progress, "growing", 0.85)
     else:
-        g = grow_2d(model, region, p, rng_grow, sub_progress(progress, 0.0, 0.4))
+        cuts = [(load_cut(c.path), None if c.at is None else np.asarray(c.at, np.float64)) for c in p.cuts]
+        p_grow = replace(p, node_budget=max(int(p.node_budget) - sum(c.n_bones for c, _ in cuts), 8)) if cuts else p
+        g = grow_2d(model, region, p_grow, rng_grow, sub_progress(progress, 0.0, 0.4))
         rest, lifted = lift_grown(g, region, conifer, p, sub_progress(progress, 0.4, 0.85), env)
         if p.allometry and not conifer:            # Holton's angles at the forks (seed 001 §4.4); a
             # conifer's whorls off its leader are no forks of two (measured: turning them rounds its cone)
@@ -555,20 +505,30 @@ def grow_tree(model: SpeciesModel, envelope: Envelope, params: GrowParams | None
             rest, holton = holton_pose(g.parents, rest, g.anchor, r_h,
                                        inside=lambda q: region.contains(q[:, [0, 2]]) & env.contains(q, tol=cell))
         mu = float(lifted.mu)
+        if cuts:                                   # the tree-cuts, the rest grown around them
+            cell = region.height() / RASTER_ROWS
+            placed = place_cuts(g.parents, rest, lambda par, pos: species_radii(
+                par, float(max(pos[:, 2].max(), 1e-6)), model.widths, p.tip_radius, p.pipe_exponent), cuts,
+                inside=lambda q: region.contains(q[:, [0, 2]]) & env.contains(q, tol=cell),
+                rng=np.random.default_rng([int(p.seed) & 0xFFFFFFFF, 0xC07]))
+            parents, rest, fixed = placed.parents, placed.rest, placed.cut_radius
+            cut_info = [{"file": os.path.basename(c.path), **i} for c, i in zip(p.cuts, placed.info["cuts"])]
     report(progress, "animating", 0.85)
+    if fixed is None:
+        parents = g.parents
     phase = None if p.tree_phase is None else np.asarray(p.tree_phase, float)
-    rot = sample_rotations(model, g.parents, rest, n_frames, fps, rng_sway, p.time_offset_s, phase, period_s)
+    rot = sample_rotations(model, parents, rest, n_frames, fps, rng_sway, p.time_offset_s, phase, period_s)
     # the species' own sway (wind 1) sways as far as its source did and stays inside the envelope;
     # the wind then scales it (×2 is ×2)
-    rot = rot * match_excursion(g.parents, rest, rot, model.sway_excursion)
-    unit, sway_scale = contain_sway(g.parents, rest, rot, region)
+    rot = rot * match_excursion(parents, rest, rot, model.sway_excursion)
+    unit, sway_scale = contain_sway(parents, rest, rot, region)
     if np.all(gains == 1.0):
         nodes3d = unit
     else:
-        nodes3d = forward_kinematics(g.parents, rest, rot * (sway_scale * gains[:, None, None]))
+        nodes3d = forward_kinematics(parents, rest, rot * (sway_scale * gains[:, None, None]))
     report(progress, "animating", 1.0)
     H = float(max(rest[:, 2].max(), 1e-6))
-    radius = species_radii(g.parents, H, model.widths, p.tip_radius, p.pipe_exponent)
+    radius = species_radii(parents, H, model.widths, p.tip_radius, p.pipe_exponent, fixed)
     k = RASTER_HEIGHT_PX / max(region.height(), float(g.pos[:, 1].max()), 1e-6)
     meta: TreeMeta = {"species": model.name, "seed": int(p.seed), "generated": True, "envelope": envelope_meta(env),
             "wind": float(p.wind), "audio": os.fspath(audio) if isinstance(audio, (str, os.PathLike)) else
@@ -583,13 +543,16 @@ def grow_tree(model: SpeciesModel, envelope: Envelope, params: GrowParams | None
         meta["periodic"] = {"frames": int(n_frames - 1), "seconds": float(period_s)}
     if variation is not None:
         meta["envelope_variation"] = variation
-    meta["allometry"] = allometry_report(g.parents, rest, radius, model.mu_deg)
+    meta["allometry"] = allometry_report(parents, rest, radius, model.mu_deg)
     if holton is not None:
         meta["allometry"]["holton_turns"] = holton
-    tree = Tree3D(g.parents.astype(np.int32), nodes3d.astype(np.float32), radius,
-                  branching_level(g.parents).astype(np.int32), fps, p.name or f"{model.name}_{int(p.seed)}", meta)
+    if cut_info is not None:
+        meta["cuts"] = cut_info
+    tree = Tree3D(parents.astype(np.int32), nodes3d.astype(np.float32), radius,
+                  branching_level(parents).astype(np.int32), fps, p.name or f"{model.name}_{int(p.seed)}", meta)
     if not palm and p.twig_depth > 0:
-        tree = with_twigs(tree, rest, region, TwigParams(depth=int(p.twig_depth), seed=int(p.seed)))
+        tree = with_twigs(tree, rest, region, TwigParams(depth=int(p.twig_depth), seed=int(p.seed)),
+                          None if fixed is None else np.isfinite(fixed))
     if p.leaf_density > 0 and leaves_info is not None:
         from ..detail.grown_leaves import grow_leaves
         tree.leaves = grow_leaves(tree, leaves_info, p.leaf_density, int(p.seed), envelope=env)
