@@ -40,6 +40,7 @@ from .core.fileio import atomic_savez, read_json
 from .core.formats import FORMATS
 from .core.generate import batch as gb
 from .core.generate import species
+from .core.generate.cuts import parse_cut_spec
 from .core.generate.photo import check_photo
 from .core.generate.variations import VariationParams
 from .core.params import spec
@@ -48,6 +49,7 @@ from .core.reconstruct.lift import LiftParams
 from .core.reconstruct.motion import MotionParams
 from .core.reconstruct.run import ReconstructSettings
 from .core.tree3d import load_tree, save_tree
+from .core.tree_cut import load_cut
 
 
 def _default(cls: type, name: str):
@@ -265,6 +267,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="turn each fork's two children together so the thicker bends less, by Holton's rule "
                         "(a1 = a d2^2 / (d1^2 + d2^2), seed 001), within the envelope; broadleaf trees (it moves "
                         "the species' measured split of the fork angle)")
+    g.add_argument("--cut", action="append", metavar="FILE[@X,Y,Z]",
+                   help="a tree-cut every tree must contain (a .npz saved by the panel's Save Cut): placed where its "
+                        "base's radius fits, or with @X,Y,Z its base on the branch nearest that point (metres from the "
+                        "tree's base; x right, y depth, z up); the tree's branches in its way are grown elsewhere. "
+                        "Repeat for several")
     g.add_argument("--wind", type=float, default=_default(G, "wind"),
                    help="sway strength (default %(default)s = as in the example; 2 = twice)")
     g.add_argument("--audio", metavar="WAV", help="WAV recording whose loudness drives the sway over time (gusts)")
@@ -389,6 +396,8 @@ def _plan_generation(run: Run, req: gb.GenerateRequest):
         plan.envelope, plan.envelope_label = gb.make_envelope(spec_, req.height_m)
     if req.audio is not None:
         gb.check_audio(req.audio)
+    for c in req.cuts:                                     # a missing or foreign cut file: before any work
+        load_cut(parse_cut_spec(c).path)
     _check_leaf_image(run.job.outputs.leaf_image)
     return plan
 

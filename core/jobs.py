@@ -58,7 +58,7 @@ OPTIONS: dict[str, type] = {
     "fold_alpha": float, "candidates": int, "sigma_track": float, "sigma_shape": float, "max_step": float,
     "max_total": float, "flutter_gain": float, "max_leaf_clusters": int,
     "variations": int, "exemplars": list, "billboard": int, "envelope_variation": float,
-    "allometry": bool, "exemplar_outlines": list,
+    "allometry": bool, "exemplar_outlines": list, "cut": list,
 }
 #: the options that say where a job reads and writes (not its settings: not in its settings hash)
 PLACES = ("video", "outline", "out", "tree")
@@ -74,7 +74,7 @@ SETTINGS = {"levels": "levels", "frames": "frames", "skeleton": "skeleton", "sca
             "sigma_track": "sigma_track", "sigma_shape": "sigma_shape", "max_step": "max_step",
             "max_total": "max_total", "flutter_gain": "flutter_gain", "max_leaf_clusters": "max_leaf_clusters"}
 #: options of a generation only (a photo's sway takes ``species`` and ``seconds`` too)
-GENERATION_ONLY = ("species", "envelope", "audio", "frames_out", "seconds", "envelope_variation", "allometry")
+GENERATION_ONLY = ("species", "envelope", "audio", "frames_out", "seconds", "envelope_variation", "allometry", "cut")
 FORMAT_FLAGS = ", ".join("--" + f.flag for f in FORMATS)
 
 
@@ -300,7 +300,7 @@ def request_of(o: dict, has_video: bool, loop_s: float = 0.0) -> GenerateRequest
                           leaf_density=0.0 if o.get("no_leaves") else o.get("leaf_density", d.leaf_density),
                           twig_depth=o.get("twigs", d.twig_depth), loop_s=float(loop_s),
                           envelope_variation=o.get("envelope_variation", d.envelope_variation),
-                          allometry=bool(o.get("allometry")))
+                          allometry=bool(o.get("allometry")), cuts=tuple(o.get("cut") or ()))
     check_request(req, has_video=has_video)
     return req
 
@@ -391,7 +391,8 @@ def _settings_flat(s: Settings) -> dict:
 def _request_flat(r: GenerateRequest) -> dict:
     return {"generate": r.count, "species": r.species, "envelope": r.envelope, "wind": float(r.wind),
             "audio": r.audio, "seed": r.seed, "nodes": r.nodes, "frames_out": r.frames_out, "seconds": r.seconds,
-            "envelope_variation": float(r.envelope_variation), "allometry": bool(r.allometry) or None}
+            "envelope_variation": float(r.envelope_variation), "allometry": bool(r.allometry) or None,
+            "cut": list(r.cuts) or None}
 
 
 def to_flat(job: Job) -> dict:

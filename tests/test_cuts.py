@@ -235,3 +235,30 @@ def test_two_cuts_and_a_palm(broad, limb, tmp_path):
     assert palm.form == "palm"
     with pytest.raises(InputError, match="palms"):
         growth.grow_tree(palm, env, p)
+
+
+# ----------------------------------------------------------------------------- the batch
+
+def test_the_batch_places_cuts_and_refuses_bad_ones(limb, tmp_path):
+    from tree_from_video.core import jobs
+    from tree_from_video.core.tree3d import load_tree
+
+    from test_generate_batch import run
+    path, cut = limb
+    out = tmp_path / "gen"
+    code, err = run("--generate", 2, "--species", "sparse", "--nodes", 120, "--frames-out", 3, "--wind", 0,
+                    "--no-leaves", "--cut", path, "--cut", f"{path}@0.5,0,6", "--seed", 71, "--out", out)
+    assert code == 0, err
+    for folder in ("tree_000", "tree_001"):
+        tree = load_tree(out / folder / "tree3d.npz")
+        fit, at = tree.meta["cuts"]
+        assert fit["placed"] == "fit" and at["placed"] == "at" and at["at"] == [0.5, 0.0, 6.0]
+        for info in (fit, at):
+            nodes = np.arange(info["first_node"], info["first_node"] + info["bones"])
+            _check_unchanged(tree, cut, nodes, info)
+    job = jobs.from_flat({"generate": 1, "species": "broad", "cut": [path], "out": str(tmp_path / "j")})
+    assert jobs.from_flat(jobs.to_flat(job)) == job and job.request.cuts == (path,)
+    for bad, says in ((f"{path}@1,2", "X,Y,Z"), (str(tmp_path / "none.npz"), "does not exist")):
+        code, err = run("--generate", 1, "--species", "broad", "--cut", bad, "--out", tmp_path / "bad")
+        assert code == 2 and says in err and len(err.strip().splitlines()) == 1, err
+        assert not (tmp_path / "bad").exists()

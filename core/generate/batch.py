@@ -27,6 +27,7 @@ from ..errors import InputError
 from ..loop import LoopSettings
 from ..params import check, param, same_as
 from ..progress import ProgressFn
+from .cuts import parse_cut_spec
 from .growth import GrowParams
 
 MAX_TREES = 1000
@@ -45,7 +46,9 @@ class GenerateRequest:
     ``leaf_density`` 0 for bare trees; ``twig_depth`` generations of twigs (0: none); ``loop_s`` > 0:
     each tree sways in a loop of that many seconds by construction (``GrowParams.loop_s``);
     ``envelope_variation`` 0..1: each tree in its own crown around the envelope; ``allometry``: the
-    forks' angles by Holton's rule (both ``GrowParams``)."""
+    forks' angles by Holton's rule (both ``GrowParams``); ``cuts`` tree-cuts every tree must contain,
+    ``FILE`` (where it fits) or ``FILE@X,Y,Z`` (its base at that point, metres from the tree's
+    base; :func:`.cuts.parse_cut_spec`)."""
 
     count: int = param(1, 1, MAX_TREES, what="--generate")
     species: str | None = None
@@ -62,6 +65,7 @@ class GenerateRequest:
     loop_s: float = same_as(LoopSettings, "seconds")
     envelope_variation: float = same_as(GrowParams, "envelope_variation")
     allometry: bool = False
+    cuts: tuple[str, ...] = ()
 
 
 def tree_folders(count: int) -> list[str]:
@@ -102,6 +106,8 @@ def check_request(req: GenerateRequest, has_video: bool) -> None:
         raise InputError(f"--leaf-density {req.leaf_density} must be in [0, 1]; 0 or --no-leaves for bare trees")
     if req.seed < 0:
         raise InputError(f"--seed {req.seed} must be >= 0")
+    for c in req.cuts:
+        parse_cut_spec(c)
     check(req)                                   # --twigs (and the ranged fields above) in range
 
 
@@ -179,7 +185,7 @@ def generate_trees(model, species_label: str, envelope, envelope_label: str, req
                             wind=float(req.wind), leaf_density=float(req.leaf_density),
                             twig_depth=int(req.twig_depth), loop_s=float(req.loop_s),
                             envelope_variation=float(req.envelope_variation), allometry=bool(req.allometry),
-                            name=f"{model.name}_{seed}")
+                            cuts=tuple(parse_cut_spec(c) for c in req.cuts), name=f"{model.name}_{seed}")
         tree = grow_tree(model, envelope, params, audio=req.audio, progress=progress)
         d = os.path.join(out_dir, folder)
         os.makedirs(d, exist_ok=True)
