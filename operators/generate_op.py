@@ -16,6 +16,7 @@ import numpy as np
 from ..core.envelope import envelope_from_meta
 from ..core.errors import InputError
 from ..core.generate import envelopes, forest, growth, species
+from ..core.generate.cuts import CutSpec
 from ..core.job import Job
 from ..core.loop import maybe_loop
 from ..core.progress import sub_progress
@@ -101,7 +102,8 @@ def grow_params(props, model_frames: int | None = None, scene=None) -> growth.Gr
                              n_frames=int(frames), fps=fps, wind=props.gen_wind, twig_depth=props.gen_twig_depth,
                              leaf_density=props.gen_leaf_density if props.build_leaves else 0.0,
                              loop_s=props.loop_seconds,         # a loop: grown on whole periods
-                             envelope_variation=props.gen_envelope_variation, allometry=props.gen_allometry)
+                             envelope_variation=props.gen_envelope_variation, allometry=props.gen_allometry,
+                             cuts=(CutSpec(bpy.path.abspath(props.gen_cut)),) if props.gen_cut else ())
 
 
 def audio_path(props) -> str | None:
@@ -164,12 +166,16 @@ def why_not(context, props) -> str | None:
             return problem
     if env == "CURVE" and props.envelope_curve is None:
         return "no envelope curve chosen; draw a closed curve in the front view and pick it (Envelope › Curve)"
+    if props.gen_cut:
+        problem = missing_file(props.gen_cut, "tree-cut", "Generate")
+        if problem:
+            return problem
     if props.gen_audio:
         return missing_file(props.gen_audio, "wind audio", "Generate")
     return None
 
 
-def _grow_work(model, tree_src, spec, params, audio, slots_fn=None):
+def grow_work(model, tree_src, spec, params, audio, slots_fn=None):
     """Worker: fit the species if needed, build the envelope, grow one tree or a forest."""
     def work(progress):
         m = model
@@ -211,30 +217,45 @@ class TREE_OT_generate(jobs.JobOperator, bpy.types.Operator):
             params.height_m = None
             y = float(np.array(props.envelope_curve.matrix_world)[1, 3])
             self._cursor = np.array([spec.offset[0], y, spec.offset[1]])
-        return Job(_grow_work(model, tree_src, spec, params, audio_path(props)))
+        return Job(grow_work(model, tree_src, spec, params, audio_path(props)))
 
     def done(self, context, result):
         model, trees, _ = result
-        tree = trees[0]
         name = unique_collection_name(f"{model.name} {context.scene.tree_video.gen_seed}")
-        try:
-            tree, note = maybe_loop(tree, context.scene.tree_video.loop_seconds)
-            if note:
-                self.report({"INFO"}, note)
-            game = game_settings(context.scene.tree_video)
-            built = build_tree(context, tree, name, curliness=context.scene.tree_video.curliness,
-                               bark=context.scene.tree_video.bark, forks=context.scene.tree_video.forks,
-                               relief_cm=context.scene.tree_video.bark_relief,
-                               keep_view=True,
-                               bark_maps=species_bark(context.scene.tree_video, model), **build_kwargs(game))
-            keep_engine_files(built, tree, game)
-        except InputError as exc:
-            self.report({"ERROR"}, str(exc))
-            return {"CANCELLED"}
-        built["armature"].location = getattr(self, "_cursor", np.zeros(3))
-        self.report({"INFO"}, f"'{name}': {tree.n_nodes - 1} branch bones, "
-                              f"{tree.leaves.count if tree.leaves is not None else 0} leaf clusters × {tree.n_frames} frames")
-        return {"FINISHED"}
+        props = context.scene.tree_video
+        cuts = [{"path": bpy.path.abspath(props.gen_cut), "at": None}] if props.gen_cut else []
+        return build_generated(self, context, model, trees[0], name, cuts, location=getattr(self, "_cursor", None))
+
+
+def build_generated(op, context, model, tree, name: str, cuts: list[dict], replace: bool = False,
+                    location=None) -> set:
+    """Build the generated ``tree`` of ``model`` as the collection ``name`` (``replace``: in place of
+    the one of that name) with the panel's look, standing at ``location`` (an armature's
+    ``matrix_world``, or a point); keep its rest and ``cuts`` for Save Cut and Place Cut."""
+    props = context.scene.tree_video
+    try:
+        tree, note = maybe_loop(tree, props.loop_seconds)
+        if note:
+            op.report({"INFO"}, note)
+        game = game_settings(props)
+        built = build_tree(context, tree, name, replace=replace, curliness=props.curliness, bark=props.bark,
+                           forks=props.forks, relief_cm=props.bark_relief, keep_view=True,
+                           bark_maps=species_bark(props, model), **build_kwargs(game))
+        keep_engine_files(built, tree, game)
+    except InputError as exc:
+        op.report({"ERROR"}, str(exc))
+        return {"CANCELLED"}
+    rig = built["armature"]
+    if location is not None and np.shape(location) == (4, 4):
+        rig.matrix_world = location
+    else:
+        rig.location = np.zeros(3) if location is None else location
+    stored.store_grown(built["collection"], tree, cuts)
+    placed = f", {len(cuts)} cut(s) in it" if cuts else ""
+    op.report({"INFO"}, f"'{name}': {tree.n_nodes - 1} branch bones, "
+                        f"{tree.leaves.count if tree.leaves is not None else 0} leaf clusters × {tree.n_frames} "
+                        f"frames{placed}")
+    return {"FINISHED"}
 
 
 class TREE_OT_generate_forest(jobs.JobOperator, bpy.types.Operator):
@@ -274,7 +295,7 @@ class TREE_OT_generate_forest(jobs.JobOperator, bpy.types.Operator):
                 xy = forest.scatter_area(n, w, d, spacing, seed)
                 return np.concatenate([xy + cursor[:2], np.full((len(xy), 1), cursor[2])], axis=1)
         self._name = unique_collection_name(props.forest_name.strip() or "Forest")
-        return Job(_grow_work(model, tree_src, spec, params, audio,
+        return Job(grow_work(model, tree_src, spec, params, audio,
                               slots_fn=lambda: forest.forest_slots(positions(), seed, variants=variants)))
 
     # the worker's trees are built on the main thread: all at once (execute) or a few per tick (invoke)

@@ -240,10 +240,10 @@ def test_two_cuts_and_a_palm(broad, limb, tmp_path):
 # ----------------------------------------------------------------------------- the batch
 
 def test_the_batch_places_cuts_and_refuses_bad_ones(limb, tmp_path):
+    from test_generate_batch import run
+
     from tree_from_video.core import jobs
     from tree_from_video.core.tree3d import load_tree
-
-    from test_generate_batch import run
     path, cut = limb
     out = tmp_path / "gen"
     code, err = run("--generate", 2, "--species", "sparse", "--nodes", 120, "--frames-out", 3, "--wind", 0,

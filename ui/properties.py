@@ -379,6 +379,11 @@ class TreeVideoSettings(bpy.types.PropertyGroup):
         description="Turn each fork's two children together so the thicker bends less, by Holton's rule "
                     "(seed 001's allometry), within the envelope; broadleaf trees (it moves the species' "
                     "measured split of the fork angle)")
+    gen_cut: bpy.props.StringProperty(
+        name="Cut", subtype="FILE_PATH",
+        description="A tree-cut (.npz from Save Cut) that generated trees must contain: Generate places it where "
+                    "its base's radius fits, Place Cut on the selected generated tree where the 3D cursor is; the "
+                    "tree's branches in its way grow elsewhere")
     gen_wind: bpy.props.FloatProperty(name="Wind", **_core("gen_wind", soft_max=10.0),
                                       description="Sway amplitude relative to the source video (2 = twice as strong)")
     gen_audio: bpy.props.StringProperty(name="Wind Audio", subtype="FILE_PATH",

@@ -11,6 +11,7 @@ collection's, else the file's only one.
 """
 from __future__ import annotations
 
+import json
 import os
 import time
 
@@ -88,6 +89,49 @@ def selected_tree(context, what: str) -> Tree3D:
                          "or pick a species from the library or a file")
     raise InputError(f"{what}: this file has {n} reconstructed trees; select the one to use "
                      "(click its rig or mesh, or its collection in the Outliner)")
+
+
+#: the ID property on a generated tree's collection: its rest pose and the cuts placed in it
+GROWN_KEY = "_tree_from_video_grown"
+
+
+def store_grown(coll, tree: Tree3D, cuts: list[dict]) -> None:
+    """Keep what Save Cut and Place Cut read of a generated ``tree`` in its collection ``coll``: its
+    rest pose (frame 1 only: a few kB, not the motion) and its cuts ``[{"path", "at"}]`` (``at``
+    metres in the tree's frame or None)."""
+    rest = Tree3D(tree.parents, tree.nodes3d[:1], tree.radius, tree.level, tree.fps, tree.name, tree.meta)
+    coll[GROWN_KEY] = {"tree": tree_bytes(rest), "cuts": json.dumps(cuts), "made": time.time()}
+
+
+def is_grown(coll) -> bool:
+    return coll is not None and coll.get(GROWN_KEY) is not None
+
+
+def grown_cuts(coll) -> list[dict]:
+    """The cuts placed in the generated tree of ``coll`` (:func:`store_grown`)."""
+    return json.loads(str(coll[GROWN_KEY]["cuts"])) if is_grown(coll) else []
+
+
+def rig_tree(context) -> tuple:
+    """``(collection, Tree3D at rest)`` of the tree whose rig is the active object (reconstructed or
+    generated), else :class:`InputError` saying what to select."""
+    ob = getattr(context, "active_object", None)
+    if ob is None or ob.type != "ARMATURE":
+        raise InputError("select a tree's rig (its armature) and, in Pose Mode, the bones of a branch")
+    found = owners([ob], lambda c: is_tree(c) or is_grown(c))
+    if not found:
+        raise InputError(f"'{ob.name}' is not the rig of a reconstructed or generated tree of this file "
+                         "(a forest's trees keep no tree to cut from); select one")
+    return found[0], kept_tree(found[0])
+
+
+def kept_tree(coll) -> Tree3D:
+    """The tree kept in ``coll``: a reconstruction's (:func:`load_tree`) or a generated tree's rest."""
+    if is_tree(coll):
+        return load_tree(coll)
+    tree = tree_from_bytes(bytes(coll[GROWN_KEY]["tree"]), f"the tree kept in collection '{coll.name}'")
+    tree.name = coll.name
+    return tree
 
 
 def clear() -> None:
