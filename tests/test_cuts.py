@@ -262,3 +262,14 @@ def test_the_batch_places_cuts_and_refuses_bad_ones(limb, tmp_path):
         code, err = run("--generate", 1, "--species", "broad", "--cut", bad, "--out", tmp_path / "bad")
         assert code == 2 and says in err and len(err.strip().splitlines()) == 1, err
         assert not (tmp_path / "bad").exists()
+
+
+def test_a_cut_sticking_out_of_the_envelope_is_reported(broad, limb):
+    """Placed by hand at the crown's top, most of the limb is outside the envelope: kept as placed
+    (the user's choice), with a warning that gives the share."""
+    path, cut = limb
+    with pytest.warns(RuntimeWarning, match=r"only \d+% of its nodes are inside the envelope"):
+        tree = _grow(broad, path, at=(0.0, 0.0, 9.9), seed=83)
+    nodes, info = _placed_nodes(tree)
+    assert info["inside_share"] < growth.CUT_INSIDE_WARN
+    _check_unchanged(tree, cut, nodes, info)

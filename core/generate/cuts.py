@@ -16,8 +16,9 @@
    clearance from its base that have a tree node within the clearance);
 3. every tree branch whose bone (its middle or its tail) comes closer than the clearance to a cut
    bone is taken off with all it carries (``A`` and its ancestors stay);
-4. as many nodes as were taken off grow back from the stumps by space colonization
-   (:mod:`.colonize`) toward points in the envelope that keep the clearance from the cut.
+4. as many nodes as were taken off grow back from the stumps and the tree's tips by space
+   colonization (:mod:`.colonize`: step the tree's median bone, kill half of it) toward random
+   points of the envelope twice the clearance from the cut, each step keeping the clearance.
 
 The clearance is ``max(CLEAR_RADII · median cut radius, CLEAR_BONE · median tree bone)``. Radii then
 follow the pipe model with the cut's kept (:func:`..tree3d.pipe_radii` ``fixed``): the branches
@@ -250,10 +251,12 @@ def place_cut(parents: np.ndarray, rest: np.ndarray, radius: np.ndarray, cut: Tr
 
         def room(q: np.ndarray) -> np.ndarray:
             return np.asarray(inside(q), bool) & (segment_distance(q, ca, cb) > clear)
-        growing = np.zeros(len(par), bool)
-        growing[index[stumps[index[stumps] >= 0]]] = True
+        growing = np.zeros(len(par), bool)                  # the stumps and the tree's own tips (a stump
+        growing[index[stumps[index[stumps] >= 0]]] = True   # at the cut's base has no room to grow)
+        kids = np.bincount(par[par >= 0], minlength=len(par))
+        growing |= (kids == 0) & (cut_idx < 0) & ~np.concatenate([frozen[keep], np.ones(M - 1, bool)])
         if len(pts) and growing.any():
-            col = colonize(par, pos, growing, pts, step, 3.0 * step, step, budget=len(par) + n_off, inside=room)
+            col = colonize(par, pos, growing, pts, step, 4.0 * step, 0.5 * step, budget=len(par) + n_off, inside=room)
             regrown = len(col.parents) - len(par)
             par, pos = col.parents.astype(np.int64), col.pos
             cut_idx = np.concatenate([cut_idx, -np.ones(regrown, np.int64)])

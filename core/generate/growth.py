@@ -428,6 +428,24 @@ def species_radii(parents: np.ndarray, height: float, widths: tuple | None, tip:
     return pipe_radii(parents, tip_m, e, fixed).astype(np.float32)
 
 
+#: a placed cut with less of its nodes inside the envelope is reported
+CUT_INSIDE_WARN = 0.9
+
+
+def _warn_cuts(infos: list[dict]) -> None:
+    """A warning (the number and the fix) for each cut that sticks out of the envelope or whose
+    displaced branches found no room to grow back."""
+    import warnings
+    for i in infos:
+        if i["inside_share"] < CUT_INSIDE_WARN:
+            warnings.warn(f"cut '{i['file']}': only {i['inside_share']:.0%} of its nodes are inside the envelope "
+                          "where it was placed; put its base nearer the crown's middle, or let it fit (no point)",
+                          RuntimeWarning, stacklevel=3)
+        if i["regrown"] < i["taken_off"]:
+            warnings.warn(f"cut '{i['file']}': {i['taken_off']} nodes made way for it and {i['regrown']} found room "
+                          "to grow back; the tree has fewer branches than its budget", RuntimeWarning, stacklevel=3)
+
+
 def with_twigs(tree: Tree3D, rest: np.ndarray, region: Region2D, params: TwigParams,
                bare: np.ndarray | None = None) -> Tree3D:
     """``tree`` with twigs (:func:`..detail.twigs.add_twigs`) laid out on its rest pose ``rest
@@ -513,6 +531,7 @@ def grow_tree(model: SpeciesModel, envelope: Envelope, params: GrowParams | None
                 rng=np.random.default_rng([int(p.seed) & 0xFFFFFFFF, 0xC07]))
             parents, rest, fixed = placed.parents, placed.rest, placed.cut_radius
             cut_info = [{"file": os.path.basename(c.path), **i} for c, i in zip(p.cuts, placed.info["cuts"])]
+            _warn_cuts(cut_info)
     report(progress, "animating", 0.85)
     if fixed is None:
         parents = g.parents
