@@ -90,6 +90,10 @@ echo "== Blender 4.3 GUI: a tree's GLB re-imported beside it, Material Preview: 
 shot reimport 1400x900 35 reimport_shot.py "the re-imported GLB's bark does not look like the original in Material Preview" \
   "bark colours within 10%: True" "ui ready"
 
+echo "== Blender 4.3 GUI: Save Cut on a tree's limb, a generated tree that contains it, the Generate sub-panel"
+shot cuts 1600x900 20 cut_shot.py "Save Cut or Generate with a cut failed in the GUI" "save cut: {'FINISHED'}" \
+  "generate with the cut: {'FINISHED'}" "'bones': 33" "ui ready"
+
 echo "== Blender 4.3 GUI: Track & Preview drawn over the clip in the Movie Clip editor"
 shot clip 1600x900 15 clip_shot.py "Track & Preview did not open the clip editor in the GUI" "preview: {'FINISHED'}" \
   "clip editor opened by the operator: clip video.mp4, frame 1" "sidebar True on tab 'Tree'" "clip ready"
