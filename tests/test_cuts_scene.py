@@ -121,7 +121,8 @@ def test_generate_and_place_cut_in_blender(tmp_path):
     fit, at = kept.meta["cuts"]
     assert at["placed"] == "at" and np.allclose(at["at"], local, atol=1e-4)
     rest = kept.nodes3d[0].astype(np.float64)
-    own = np.setdiff1d(np.arange(kept.n_nodes), np.arange(at["first_node"], at["first_node"] + at["bones"]))
+    grown = (kept.meta.get("twigs") or {}).get("first_node", kept.n_nodes)      # twigs come after the cuts
+    own = np.setdiff1d(np.arange(grown), np.arange(at["first_node"], at["first_node"] + at["bones"]))
     nearest = own[np.argsort(np.linalg.norm(rest[own] - local, axis=1))[:1 + at["regrown"]]]
     assert at["base_node"] in nearest
     for info in (fit, at):
