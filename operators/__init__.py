@@ -5,4 +5,4 @@ batch outputs, the clip overlay, the annotation outline)."""
 import bpy
 
 register, unregister = bpy.utils.register_submodule_factory(
-    __name__, ["skeleton_op", "reconstruct_op", "export_op", "generate_op", "cut_op"])
+    __name__, ["skeleton_op", "reconstruct_op", "export_op", "generate_op", "cut_op", "billboard_op"])

@@ -297,6 +297,7 @@ class TREE_PT_export(_TreePanel, bpy.types.Panel):
         col = self.column()
         col.separator()
         col.operator("tree_video.trace_skeleton", icon="FILE", text="Save 2D Skeleton (.npz)")
+        col.operator("tree_video.save_billboard", icon="IMAGE_RGB_ALPHA")
 
 
 def _in_clip_editor(panel, name: str, parent: str | None = None):

@@ -22,6 +22,8 @@ from .axes import TO_GLTF
 FILES = ("billboard.png", "billboard_normal.png", "billboard.json")
 #: the billboard's pixels on its longer side, the range ``--billboard`` takes
 BILLBOARD_PX = (16, 8192)
+#: the panel's Billboard size (pixels on the longer side)
+DEFAULT_PX = 512
 #: the frame's margin around the tree, share of its longer side, each way
 MARGIN = 0.02
 
@@ -69,9 +71,10 @@ def billboard_view(points: np.ndarray, px: int) -> BillboardView:
     return BillboardView(centre, (min(w, int(px)), min(h, int(px))), m, depth)
 
 
-def billboard_doc(view: BillboardView, tree_name: str) -> dict:
-    """``billboard.json``: the files, the size, the scale and where the tree's origin lands."""
-    origin = view.project(np.zeros((1, 3)))[0]
+def billboard_doc(view: BillboardView, tree_name: str, base: np.ndarray | None = None) -> dict:
+    """``billboard.json``: the files, the size, the scale and where the tree's origin lands (its
+    base ``base (3,)`` in the view's metres; None: the world origin)."""
+    origin = view.project(np.zeros((1, 3)) if base is None else np.asarray(base, np.float64).reshape(1, 3))[0]
     return {
         "format": "tree_from_video.billboard", "version": 1, "tree": tree_name,
         "files": {"albedo": FILES[0], "normal": FILES[1]},
@@ -85,8 +88,10 @@ def billboard_doc(view: BillboardView, tree_name: str) -> dict:
     }
 
 
-def billboard_files(view: BillboardView, albedo: np.ndarray, normal: np.ndarray, tree_name: str) -> dict[str, bytes]:
-    """``{name: bytes}`` of :data:`FILES`: the renders ``(H, W, 4)`` uint8 RGBA as PNGs and the doc."""
+def billboard_files(view: BillboardView, albedo: np.ndarray, normal: np.ndarray, tree_name: str,
+                    base: np.ndarray | None = None) -> dict[str, bytes]:
+    """``{name: bytes}`` of :data:`FILES`: the renders ``(H, W, 4)`` uint8 RGBA as PNGs and the doc
+    (the tree's base at ``base (3,)`` metres, :func:`billboard_doc`)."""
     import cv2
 
     from ..fileio import json_bytes
@@ -96,5 +101,5 @@ def billboard_files(view: BillboardView, albedo: np.ndarray, normal: np.ndarray,
         if not ok:
             raise RuntimeError(f"OpenCV could not encode {name}")
         out[name] = png.tobytes()
-    out[FILES[2]] = json_bytes(billboard_doc(view, tree_name))
+    out[FILES[2]] = json_bytes(billboard_doc(view, tree_name, base))
     return out

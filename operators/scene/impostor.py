@@ -35,6 +35,19 @@ def _render(scene, path: str) -> np.ndarray:
     return img[..., [2, 1, 0, 3]]
 
 
+def box_down(img: np.ndarray, k: int) -> np.ndarray:
+    """``(H, W, 4)`` uint8 RGBA of a render ``(k·H, k·W, 4)`` made without anti-aliasing: alpha the
+    share of each pixel's ``k × k`` samples covered (a box filter: the coverage itself), colour the
+    covered samples' mean (alpha-weighted)."""
+    H, W = img.shape[0] // k, img.shape[1] // k
+    x = img[:H * k, :W * k].astype(np.float64).reshape(H, k, W, k, 4)
+    a = x[..., 3] / 255.0
+    cover = a.sum(axis=(1, 3))
+    rgb = (x[..., :3] * a[..., None]).sum(axis=(1, 3)) / np.maximum(cover, 1e-9)[..., None]
+    out = np.concatenate([rgb, (cover / (k * k) * 255.0)[..., None]], axis=-1)
+    return np.clip(np.round(out), 0, 255).astype(np.uint8)
+
+
 class ViewRenderer:
     """Renders ``meshes`` on ``rig`` at rest in a scene of its own (the user's scene, frame and
     render settings untouched): :meth:`render` gives a view's albedo (the materials' texture
@@ -81,11 +94,13 @@ class ViewRenderer:
         return self
 
     def render(self, centre, forward, right, up, ortho_scale: float, res: tuple[int, int],
-               depth: float) -> tuple[np.ndarray, np.ndarray]:
+               depth: float, supersample: int = 1) -> tuple[np.ndarray, np.ndarray]:
         """``(albedo, normal)`` ``(H, W, 4)`` uint8 RGBA (row 0 the top) of the orthographic view
         through ``centre`` looking along ``forward`` (Blender axes, unit ``right``/``up``),
         ``ortho_scale`` metres across the longer side of ``res = (W, H)`` px, the camera ``depth``
-        metres back."""
+        metres back. ``supersample`` k > 1: the albedo rendered k× as fine without anti-aliasing
+        and box-filtered (:func:`box_down`), so its alpha is each pixel's coverage in every Blender
+        (4.3's Workbench anti-aliasing left a fully covered one-pixel twig at alpha ~0.4)."""
         scene, cam = self.scene, self.cam
         m = np.eye(4)
         m[:3, 0], m[:3, 1], m[:3, 2] = right, up, -np.asarray(forward)   # a camera looks down its -Z
@@ -96,8 +111,15 @@ class ViewRenderer:
         scene.render.resolution_x, scene.render.resolution_y = int(res[0]), int(res[1])
         scene.display.shading.color_type = "TEXTURE"
         scene.view_settings.view_transform = "Standard"
-        scene.display.render_aa = "8"
-        a = _render(scene, os.path.join(self.folder, "a.png"))
+        k = max(int(supersample), 1)
+        if k > 1:
+            scene.render.resolution_x, scene.render.resolution_y = int(res[0]) * k, int(res[1]) * k
+            scene.display.render_aa = "OFF"
+            a = box_down(_render(scene, os.path.join(self.folder, "a.png")), k)
+            scene.render.resolution_x, scene.render.resolution_y = int(res[0]), int(res[1])
+        else:
+            scene.display.render_aa = "8"
+            a = _render(scene, os.path.join(self.folder, "a.png"))
         for me, name, _ in self.added:
             me.color_attributes.active_color_name = name
         scene.display.shading.color_type = "VERTEX"
@@ -146,12 +168,16 @@ def render_atlas(rig, meshes, layout: ImpostorLayout) -> tuple[np.ndarray, np.nd
     return albedo, normal
 
 
+#: the billboard's albedo is rendered this many times as fine and box-filtered (:meth:`ViewRenderer.render`)
+BILLBOARD_SUPERSAMPLE = 4
+
+
 def render_billboard(rig, meshes, view) -> tuple[np.ndarray, np.ndarray]:
     """``(albedo, normal)`` ``(H, W, 4)`` uint8 RGBA of the tree's front at rest, framed as
     ``view`` (:class:`core.asset.billboard.BillboardView`)."""
     with ViewRenderer(rig, meshes) as views:
         return views.render(view.centre, view.forward, view.right, view.up, view.ortho_scale, view.px,
-                            view.depth)
+                            view.depth, supersample=BILLBOARD_SUPERSAMPLE)
 
 
 def build_card(layout: ImpostorLayout, albedo: np.ndarray, rig, root_bone: str, coll, name: str, parent,

@@ -120,9 +120,16 @@ def billboard(built: dict, tree_name: str, px: int) -> dict[str, bytes]:
         parts = [asset.branches, asset.leaves]
     pts = np.concatenate([m.co for m in parts if m is not None])
     offset = np.asarray(built["armature"].matrix_world.translation, np.float64)    # a shot's tree stands apart
-    view = billboard_view(pts + offset, px)
-    albedo, normal = render_billboard(built["armature"], meshes, view)
-    return billboard_files(view, albedo, normal, tree_name)
+    return billboard_render(built["armature"], meshes, pts + offset, tree_name, px)
+
+
+def billboard_render(rig, meshes, points: np.ndarray, tree_name: str, px: int) -> dict[str, bytes]:
+    """The billboard files of ``meshes`` on ``rig`` at rest, framed on their rest ``points (P, 3)``
+    (world metres), ``px`` pixels on the longer side (:mod:`core.asset.billboard`); the json says
+    where the rig's origin (the tree's base) lands."""
+    view = billboard_view(points, px)
+    albedo, normal = render_billboard(rig, meshes, view)
+    return billboard_files(view, albedo, normal, tree_name, np.asarray(rig.matrix_world.translation, np.float64))
 
 
 def lod_line(objs) -> str:
