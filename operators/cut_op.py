@@ -23,7 +23,7 @@ from ..core.generate.cuts import CutSpec
 from ..core.job import Job
 from ..core.tree_cut import cut_from_tree, save_cut
 from . import jobs
-from .generate_op import audio_path, build_generated, envelope_spec, grow_params, grow_work, species_from, why_not
+from .generate_op import audio_path, build_generated, grow_inputs, grow_work, why_not
 from .scene import stored
 from .scene.checks import missing_file, refuse
 
@@ -148,9 +148,7 @@ class TREE_OT_place_cut(jobs.JobOperator, bpy.types.Operator):
         if found is None:
             raise InputError("select a tree made by Generate Tree first")
         coll, rig = found
-        model, tree_src = species_from(props, context)
-        spec = envelope_spec(props, tree_src, context)
-        params = grow_params(props, model.n_frames if model is not None else tree_src.n_frames, context.scene)
+        model, tree_src, spec, params = grow_inputs(props, context)
         context.view_layer.update()                   # the rig's world matrix as it stands now
         world = np.array(rig.matrix_world)
         at = (np.linalg.inv(world) @ np.append(np.array(context.scene.cursor.location), 1.0))[:3]

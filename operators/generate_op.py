@@ -106,6 +106,16 @@ def grow_params(props, model_frames: int | None = None, scene=None) -> growth.Gr
                              cuts=(CutSpec(bpy.path.abspath(props.gen_cut)),) if props.gen_cut else ())
 
 
+def grow_inputs(props, context) -> tuple:
+    """``(model or None, tree or None, envelope spec, GrowParams)`` of the panel: what Generate Tree,
+    Generate Forest and Place Cut grow from (:func:`species_from`, :func:`envelope_spec`,
+    :func:`grow_params`)."""
+    model, tree_src = species_from(props, context)
+    spec = envelope_spec(props, tree_src, context)
+    params = grow_params(props, model.n_frames if model is not None else tree_src.n_frames, context.scene)
+    return model, tree_src, spec, params
+
+
 def audio_path(props) -> str | None:
     if not props.gen_audio:
         return None
@@ -208,9 +218,7 @@ class TREE_OT_generate(jobs.JobOperator, bpy.types.Operator):
 
     def make_job(self, context) -> Job:
         props = context.scene.tree_video
-        model, tree_src = species_from(props, context)
-        spec = envelope_spec(props, tree_src, context)
-        params = grow_params(props, model.n_frames if model is not None else tree_src.n_frames, context.scene)
+        model, tree_src, spec, params = grow_inputs(props, context)
         self._cursor = np.array(context.scene.cursor.location)
         if props.envelope_source == "CURVE":          # grow at the curve's size, standing where it is drawn
             spec = envelopes.envelope_from_polygon(spec)
@@ -275,9 +283,7 @@ class TREE_OT_generate_forest(jobs.JobOperator, bpy.types.Operator):
 
     def make_job(self, context) -> Job:
         props = context.scene.tree_video
-        model, tree_src = species_from(props, context)
-        spec = envelope_spec(props, tree_src, context)
-        params = grow_params(props, model.n_frames if model is not None else tree_src.n_frames, context.scene)
+        model, tree_src, spec, params = grow_inputs(props, context)
         audio = audio_path(props)
         n, spacing, seed = props.forest_count, props.forest_spacing, props.gen_seed
         # a recorded wind's gust reaches every tree at once: trees of a variant would carry it apart

@@ -12,17 +12,9 @@ from test_billboard import mesh_silhouette
 from tree_from_video.core.generate import envelopes, growth, species
 from tree_from_video.core.tree3d import save_tree
 
-from trees import empty_scene  # noqa: F401  (autouse fixture)
+from trees import empty_scene, registered  # noqa: F401  (autouse fixtures)
 
 pytestmark = [pytest.mark.blender, pytest.mark.bpy53]
-
-
-@pytest.fixture(autouse=True, scope="module")
-def registered():
-    import tree_from_video as pkg
-    pkg.register()
-    yield
-    pkg.unregister()
 
 
 def test_save_billboard_is_the_trees_silhouette(tmp_path):

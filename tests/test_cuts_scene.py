@@ -12,17 +12,10 @@ from tree_from_video.core.tree_cut import bone_lengths, cut_from_tree, load_cut
 from trees import (
     broad_tree,
     empty_scene,  # noqa: F401  (autouse fixture)
+    registered,  # noqa: F401  (autouse fixture)
 )
 
 pytestmark = [pytest.mark.blender, pytest.mark.bpy53]
-
-
-@pytest.fixture(autouse=True, scope="module")
-def registered():
-    import tree_from_video as pkg
-    pkg.register()
-    yield
-    pkg.unregister()
 
 
 def _kept_tree():

@@ -9,17 +9,9 @@ import numpy as np
 import pytest
 from test_exports import read_glb
 
-from trees import empty_scene  # noqa: F401  (autouse fixture)
+from trees import empty_scene, registered  # noqa: F401  (autouse fixtures)
 
 pytestmark = [pytest.mark.blender, pytest.mark.bpy53]
-
-
-@pytest.fixture(autouse=True, scope="module")
-def registered():
-    import tree_from_video as pkg
-    pkg.register()
-    yield
-    pkg.unregister()
 
 
 def _forest(n: int = 6, variants: int = 2, frames: int = 41):

@@ -14,17 +14,10 @@ from tree_from_video.core.generate import envelopes, growth, species
 from trees import (
     broad_tree,
     empty_scene,  # noqa: F401  (autouse fixture)
+    registered,  # noqa: F401  (autouse fixture)
 )
 
 pytestmark = [pytest.mark.blender, pytest.mark.bpy53]
-
-
-@pytest.fixture(autouse=True, scope="module")
-def registered():
-    import tree_from_video as pkg
-    pkg.register()
-    yield
-    pkg.unregister()
 
 
 def keep_tree(tree, name: str = "Kept"):

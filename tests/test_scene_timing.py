@@ -7,19 +7,12 @@ import pytest
 from trees import (
     binary_tree,
     empty_scene,  # noqa: F401  (autouse: a fresh scene per test)
+    registered,  # noqa: F401  (autouse: the add-on registered)
 )
 
 pytestmark = [pytest.mark.blender, pytest.mark.bpy53]
 
 LONG = 300          # frames of the "reconstruction" (the real clip had 555)
-
-
-@pytest.fixture(autouse=True, scope="module")
-def registered():
-    import tree_from_video as pkg
-    pkg.register()
-    yield
-    pkg.unregister()
 
 
 def _reconstruction():

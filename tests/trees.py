@@ -143,6 +143,16 @@ def empty_scene():
     bpy.ops.wm.read_factory_settings(use_empty=True)
 
 
+@pytest.fixture(autouse=True, scope="module")
+def registered():
+    """The add-on registered once for a module's tests (import it into the module, with
+    :func:`empty_scene` for an empty scene per test)."""
+    import tree_from_video as pkg
+    pkg.register()
+    yield
+    pkg.unregister()
+
+
 @pytest.fixture(autouse=True)
 def addon():
     """The add-on registered in an empty factory scene for each test; yields ``scene.tree_video``
