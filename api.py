@@ -6,6 +6,8 @@
     api.save_tree(tree, "oak/tree3d.npz");  tree = api.load_tree("oak/tree3d.npz")
     print(tree.meta["metres_per_px"], tree.meta["base_px"], tree.meta["video_size"])
     trees = api.generate("broad", 3, envelope="heart", seed=7)          # new trees of a species
+    api.save_cut(tree, ["B040"], "limb.npz")                            # a tree-cut: that branch
+    trees = api.generate("broad", 2, cuts=["limb.npz", "limb.npz@0.5,0,6"])   # trees that contain it
     game = api.loop(tree, 8.0)                                          # a seamless 8 s loop
     job = api.job(video="oak.mp4", outline="oak.json", out="oak", gltf=True, bones=64)   # a batch job
     report = api.run_job(job)                  # run as batch.py runs it: oak/report.json, the files
@@ -35,7 +37,7 @@ from .core.tree3d import load_tree as _load_tree
 from .core.tree3d import save_tree as _save_tree
 
 __all__ = ["Cancelled", "InputError", "Result", "Tree3D", "build_3d", "build_tree", "export", "generate", "job",
-           "load_tree", "reconstruct", "run_job", "save_tree", "settings", "species_library"]
+           "load_tree", "reconstruct", "run_job", "save_cut", "save_tree", "settings", "species_library"]
 
 #: Keywords of :func:`settings` beyond the fields of :class:`pipeline.Settings` (levels, skeleton,
 #: frames, scale, height_m, curliness, bark, fit_branches, cache_dir, ...).
@@ -96,7 +98,7 @@ def generate(species: str | os.PathLike = "broad", n: int = 1, envelope: str | N
     ``.json``), grown in ``envelope`` (circle, triangle, pentagon, heart, a silhouette image; None:
     the species' default), tree ``i`` with seed ``seed + i``. Keywords: those of
     :class:`~.core.generate.growth.GrowParams` (``node_budget``, ``n_frames``, ``wind``,
-    ``leaf_density``, ...)."""
+    ``leaf_density``, ``cuts``: tree-cut files, ``"FILE"`` where it fits or ``"FILE@X,Y,Z"``, ...)."""
     from .core.generate import batch as gb
     from .core.generate.growth import GrowParams, grow_tree
     from .core.progress import report, sub_progress
@@ -109,6 +111,9 @@ def generate(species: str | os.PathLike = "broad", n: int = 1, envelope: str | N
     bad = sorted(set(kw) - known)
     if bad:
         raise InputError(f"unknown generation setting '{bad[0]}'; use one of {', '.join(sorted(known))}")
+    if "cuts" in kw:                               # "FILE" or "FILE@X,Y,Z", as the batch's --cut
+        from .core.generate.cuts import parse_cut_spec
+        kw["cuts"] = tuple(c if not isinstance(c, str) else parse_cut_spec(c) for c in kw["cuts"])
     trees = []
     for i in range(int(n)):
         p = GrowParams(**{**kw, "seed": int(seed) + i})
@@ -159,6 +164,18 @@ def loop(tree: Tree3D, seconds: float) -> Tree3D:
     is named ``<tree>_loop`` and every export names its animation so."""
     from .core.loop import loop_tree
     return loop_tree(tree, seconds)[0]
+
+
+def save_cut(tree: Tree3D, bones, path: str | os.PathLike, whole_branch: bool = True,
+             overwrite: bool = False) -> str:
+    """Keep the branch of ``tree`` made of ``bones`` (names ``"B040"`` or node indices; with
+    ``whole_branch`` every bone beyond them too) and its branch mesh as a tree-cut file ``path``
+    (``.npz``, what the panel's Save Cut writes; :mod:`.core.tree_cut`). Returns the absolute path."""
+    from .core.asset.cut_mesh import with_mesh
+    from .core.tree_cut import cut_from_tree
+    from .core.tree_cut import save_cut as _save_cut
+    _save_cut(path, with_mesh(tree, cut_from_tree(tree, bones, whole_branch)), overwrite=overwrite)
+    return os.path.abspath(path)
 
 
 def species_library() -> dict[str, str]:

@@ -273,3 +273,18 @@ def test_a_cut_sticking_out_of_the_envelope_is_reported(broad, limb):
     nodes, info = _placed_nodes(tree)
     assert info["inside_share"] < growth.CUT_INSIDE_WARN
     _check_unchanged(tree, cut, nodes, info)
+
+
+def test_the_api_saves_and_places_cuts(tmp_path):
+    from tree_from_video import api
+    src = broad_tree(frames=2)
+    path = api.save_cut(src, ["B040"], tmp_path / "limb.npz")
+    cut = load_cut(path)
+    assert cut.mesh is not None and list(cut.source_nodes) == list(cut_from_tree(src, ["B040"]).source_nodes)
+    with pytest.raises(InputError, match="exists"):
+        api.save_cut(src, ["B040"], path)
+    (tree,) = api.generate("broad", 1, seed=97, n_frames=2, wind=0.0, twig_depth=0, leaf_density=0.0,
+                           cuts=[f"{path}@0.4,0,5.5"])
+    nodes, info = _placed_nodes(tree)
+    assert info["placed"] == "at"
+    _check_unchanged(tree, cut, nodes, info)
