@@ -127,3 +127,28 @@ def test_generate_and_place_cut_in_blender(tmp_path):
         a_old = cuts.bone_angles(cut.parents, cut.rest)[1:]
         ok = np.isfinite(a_old)
         assert np.abs(a_new[ok] - a_old[ok]).max() < 0.01 * np.abs(a_old[ok]).max()
+
+
+def test_save_cut_from_a_generated_tree(tmp_path):
+    """A tree made by Generate Tree keeps its rest in the file: Save Cut works on it as on a
+    reconstruction, and the cut is the generated tree's branch."""
+    import bpy
+
+    from tree_from_video.operators.scene import stored
+    p = bpy.context.scene.tree_video
+    p.species_source, p.species_name, p.envelope_source = "LIBRARY", "sparse", "CIRCLE"
+    p.gen_frames, p.gen_nodes, p.gen_height, p.gen_seed = 6, 90, 6.0, 43
+    p.build_leaves = False
+    assert bpy.ops.tree_video.generate() == {"FINISHED"}
+    coll = bpy.data.collections["sparse 43"]
+    rig = next(o for o in coll.objects if o.type == "ARMATURE")
+    kept = stored.kept_tree(coll)
+    assert kept.n_frames == 1                                   # its rest only: a few kB in the .blend
+    bpy.context.view_layer.objects.active = rig
+    _select(rig, ["B010"])
+    assert bpy.ops.tree_video.save_cut(filepath=str(tmp_path / "g.npz")) == {"FINISHED"}
+    cut = load_cut(tmp_path / "g.npz")
+    want = cut_from_tree(kept, ["B010"])
+    assert np.array_equal(cut.source_nodes, want.source_nodes) and np.allclose(cut.rest, want.rest)
+    rest = _rest_nodes(rig, cut.source_nodes[1:], int(cut.source_nodes[0]))
+    assert np.allclose(rest - rest[0], cut.rest, atol=1e-5)         # the rig's bones are the cut's
