@@ -19,6 +19,7 @@ import bpy
 import numpy as np
 
 from ..core.errors import InputError
+from ..core.generate import envelopes
 from ..core.generate.cuts import CutSpec
 from ..core.job import Job
 from ..core.tree_cut import cut_from_tree, save_cut
@@ -149,6 +150,8 @@ class TREE_OT_place_cut(jobs.JobOperator, bpy.types.Operator):
             raise InputError("select a tree made by Generate Tree first")
         coll, rig = found
         model, tree_src, spec, params = grow_inputs(props, context)
+        if props.envelope_source == "CURVE":           # the curve's size, as Generate Tree grew it
+            spec, params.height_m = envelopes.envelope_from_polygon(spec), None
         context.view_layer.update()                   # the rig's world matrix as it stands now
         world = np.array(rig.matrix_world)
         at = (np.linalg.inv(world) @ np.append(np.array(context.scene.cursor.location), 1.0))[:3]
