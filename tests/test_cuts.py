@@ -288,3 +288,4 @@ def test_the_api_saves_and_places_cuts(tmp_path):
     nodes, info = _placed_nodes(tree)
     assert info["placed"] == "at"
     _check_unchanged(tree, cut, nodes, info)
+

@@ -10,10 +10,13 @@
    ``A``'s own bone ``d_A`` (the root's: up), then about that bone by the roll ψ of
    :data:`ROLLS` that scores best:
 
-       score = inside share − collision share − |ln(r_A / r_base)|   (the last term only when fitting)
+       score = inside share − collision share − damage − |ln(r_A / r_base)|   (the last only when fitting)
 
-   (inside: the cut's nodes the envelope holds; collision: the cut's nodes farther than the
-   clearance from its base that have a tree node within the clearance);
+   (inside: the cut's nodes the envelope holds; collision: the points along the cut's bones
+   (every quarter) farther than the clearance from its base that have a tree node within the
+   clearance; damage: the largest share
+   of the tree carried by one such node, ``A``'s ancestors spared — a cut that would take the
+   crown off with the trunk above it scores low);
 3. every tree branch whose bone (its middle or its tail) comes closer than the clearance to a cut
    bone is taken off with all it carries (``A`` and its ancestors stay);
 4. as many nodes as were taken off grow back from the stumps and the tree's tips by space
@@ -44,6 +47,8 @@ CANDIDATES = 48
 CLEAR_RADII = 2.5
 #: ... or this share of the tree's median bone, whichever is more
 CLEAR_BONE = 0.5
+#: tree nodes looked at round each cut node when scoring a place (the damage term)
+NEAR_K = 8
 #: :func:`place_cuts` numbers cut k's node i ``CUT_IDS · k + i``
 CUT_IDS = 1_000_000
 
@@ -111,6 +116,15 @@ def carriers(parents: np.ndarray, marked: np.ndarray) -> np.ndarray:
     for n in topological_order(parents)[::-1]:          # leaves first
         if out[n] and parents[n] >= 0:
             out[parents[n]] = True
+    return out
+
+
+def carried(parents: np.ndarray) -> np.ndarray:
+    """``(N,)`` the number of nodes each node carries (itself and all below it)."""
+    out = np.ones(len(parents))
+    for n in topological_order(parents)[::-1]:          # leaves first
+        if parents[n] >= 0:
+            out[parents[n]] += out[n]
     return out
 
 
@@ -194,8 +208,12 @@ def place_cut(parents: np.ndarray, rest: np.ndarray, radius: np.ndarray, cut: Tr
     tree_bone = bone_lengths(parents, rest)
     clear = max(CLEAR_RADII * float(np.median(cut.radius[1:])),
                 CLEAR_BONE * float(np.median(tree_bone[parents >= 0])) if N > 1 else 0.0)
-    far = np.linalg.norm(cut.rest, axis=1) > clear                       # the cut's nodes off its base
+    t = np.array([0.25, 0.5, 0.75, 1.0])                                 # points along every cut bone ...
+    head, tail = cut.rest[cut.parents[1:]], cut.rest[1:]
+    along = (head[:, None] + t[None, :, None] * (tail - head)[:, None]).reshape(-1, 3)
+    along = along[np.linalg.norm(along, axis=1) > clear]                  # ... off its base
     kd = cKDTree(rest)                                                     # earlier cuts count too
+    size = np.append(carried(parents), 0.0) / N                          # share of the tree each node carries
     cand = _candidates(parents, radius, frozen, float(cut.radius[0]), None if at is None else np.asarray(at, float), rest)
     psi = 2.0 * np.pi * np.arange(ROLLS) / ROLLS
     best = None
@@ -206,11 +224,15 @@ def place_cut(parents: np.ndarray, rest: np.ndarray, radius: np.ndarray, cut: Tr
         R = about(d, psi) @ align(cut.parent_dir, d)                       # (ROLLS, 3, 3)
         P = rest[A] + np.einsum("rij,mj->rmi", R, cut.rest)                 # (ROLLS, M, 3)
         ins = inside(P[:, 1:].reshape(-1, 3)).reshape(ROLLS, -1).mean(axis=1)
-        hit = np.zeros(ROLLS)
-        if far.any():
-            dist = kd.query(P[:, far].reshape(-1, 3))[0].reshape(ROLLS, -1)
-            hit = (dist < clear).mean(axis=1)
-        score = ins - hit - (0.0 if at is not None else abs(math.log(max(radius[A], 1e-9) / max(cut.radius[0], 1e-9))))
+        hit, damage = np.zeros(ROLLS), np.zeros(ROLLS)
+        if len(along):
+            Q = rest[A] + np.einsum("rij,mj->rmi", R, along)                # (ROLLS, Q, 3)
+            dist, idx = kd.query(Q.reshape(-1, 3), k=NEAR_K, distance_upper_bound=clear)
+            hit = np.isfinite(dist[:, 0]).reshape(ROLLS, -1).mean(axis=1)
+            spared = np.append(ancestors(parents, A), False)[idx]             # the base's own way down stays
+            damage = np.where(spared, 0.0, size[idx]).reshape(ROLLS, -1).max(axis=1)
+        score = ins - hit - damage - (0.0 if at is not None else
+                                      abs(math.log(max(radius[A], 1e-9) / max(cut.radius[0], 1e-9))))
         k = int(np.argmax(score))
         if best is None or score[k] > best[0] + 1e-12:
             best = (float(score[k]), int(A), P[k], float(psi[k]), float(ins[k]))
