@@ -3,9 +3,11 @@
 * **Save Cut**: the bones selected on a tree's rig (Pose Mode; with *With Its Branches*, every bone
   beyond them too) and their branch mesh, kept as a cut file (:mod:`core.tree_cut`, ``.npz`` with a
   JSON header). Any reconstructed tree, or one made by Generate Tree (its rest is kept with it).
-* **Place Cut**: the selected generated tree grown again, with the panel's species and settings
-  and its own seed, so that it holds the panel's Cut with its base on the branch nearest the 3D
-  cursor (its earlier cuts where they were); the rest grows around it (:mod:`core.generate.cuts`).
+* **Place Cut**: the selected generated tree grown again as it grew (its species, envelope,
+  settings and seed, kept with it: :mod:`core.generate.regrow`; a tree kept without them takes the
+  panel's, with its own seed), so that it holds the panel's Cut with its base on the branch nearest
+  the 3D cursor (its earlier cuts where they were); the rest grows around it
+  (:mod:`core.generate.cuts`).
   It replaces the tree in place, its rig where it stood (Ctrl Z brings the old one back).
 
 Generate Tree and Generate Forest place the panel's Cut where its base fits.
@@ -21,6 +23,7 @@ import numpy as np
 from ..core.errors import InputError
 from ..core.generate import envelopes
 from ..core.generate.cuts import CutSpec
+from ..core.generate.regrow import inputs_doc, inputs_from_doc
 from ..core.job import Job
 from ..core.tree_cut import cut_from_tree, save_cut
 from . import jobs
@@ -121,7 +124,7 @@ def _grown_rig(context):
 
 
 class TREE_OT_place_cut(jobs.JobOperator, bpy.types.Operator):
-    """Grow the selected generated tree again (the panel's species and settings, its own seed) so that it holds the Cut with its base on the branch nearest the 3D cursor; it replaces the tree where it stands (Esc cancels)"""  # noqa: E501  (the tooltip)
+    """Grow the selected generated tree again as it grew (its species, envelope, settings and seed) so that it holds the Cut with its base on the branch nearest the 3D cursor; it replaces the tree where it stands (Esc cancels)"""  # noqa: E501  (the tooltip)
 
     bl_idname = "tree_video.place_cut"
     bl_label = "Place Cut"
@@ -137,10 +140,13 @@ class TREE_OT_place_cut(jobs.JobOperator, bpy.types.Operator):
             problem = missing_file(props.gen_cut, "tree-cut", "Place Cut")
             if problem:
                 return refuse(cls, problem)
-        if _grown_rig(context) is None:
+        found = _grown_rig(context)
+        if found is None:
             return refuse(cls, "select a tree made by Generate Tree (its rig or mesh), then put the 3D cursor "
                                "on the branch the cut should grow from")
-        why = why_not(context, props)
+        if jobs.running():
+            return refuse(cls, "a job is running; wait for it to finish or press Cancel")
+        why = None if stored.grown_inputs(found[0]) is not None else why_not(context, props)   # kept: no panel
         return refuse(cls, why) if why else True
 
     def make_job(self, context) -> Job:
@@ -149,23 +155,31 @@ class TREE_OT_place_cut(jobs.JobOperator, bpy.types.Operator):
         if found is None:
             raise InputError("select a tree made by Generate Tree first")
         coll, rig = found
-        model, tree_src, spec, params = grow_inputs(props, context)
-        if props.envelope_source == "CURVE":           # the curve's size, as Generate Tree grew it
-            spec, params.height_m = envelopes.envelope_from_polygon(spec), None
+        kept = stored.grown_inputs(coll)
+        if kept is not None:                           # what it grew from: the same tree, now with the cut
+            model, spec, params, audio = inputs_from_doc(kept)
+            tree_src = None
+        else:                                          # a tree kept without them: the panel's settings
+            model, tree_src, spec, params = grow_inputs(props, context)
+            audio = audio_path(props)
+            if props.envelope_source == "CURVE":       # the curve's size, as Generate Tree grew it
+                spec, params.height_m = envelopes.envelope_from_polygon(spec), None
+            spec = envelopes.envelope_from_any(spec, params.height_m or 10.0)
+            params.seed = int(stored.kept_tree(coll).meta.get("seed", params.seed))
         context.view_layer.update()                   # the rig's world matrix as it stands now
         world = np.array(rig.matrix_world)
         at = (np.linalg.inv(world) @ np.append(np.array(context.scene.cursor.location), 1.0))[:3]
         cuts = stored.grown_cuts(coll) + [{"path": bpy.path.abspath(props.gen_cut), "at": [float(v) for v in at]}]
-        params.seed = int(stored.kept_tree(coll).meta.get("seed", params.seed))     # the same tree, now with the cut
         params.cuts = tuple(CutSpec(c["path"], None if c["at"] is None else (c["at"][0], c["at"][1], c["at"][2]))
                             for c in cuts)
-        self._place = (coll.name, rig.matrix_world.copy(), cuts)
-        return Job(grow_work(model, tree_src, spec, params, audio_path(props)))
+        self._place = (coll.name, rig.matrix_world.copy(), cuts, spec, params, audio)
+        return Job(grow_work(model, tree_src, spec, params, audio))
 
     def done(self, context, result):
         model, trees, _ = result
-        name, world, cuts = self._place
-        return build_generated(self, context, model, trees[0], name, cuts, replace=True, location=world)
+        name, world, cuts, env, params, audio = self._place
+        return build_generated(self, context, model, trees[0], name, cuts, replace=True, location=world,
+                               inputs=inputs_doc(model, env, params, audio))
 
 
 classes = (TREE_OT_save_cut, TREE_OT_place_cut)

@@ -17,6 +17,7 @@ from ..core.envelope import envelope_from_meta
 from ..core.errors import InputError
 from ..core.generate import envelopes, forest, growth, species
 from ..core.generate.cuts import CutSpec
+from ..core.generate.regrow import inputs_doc
 from ..core.job import Job
 from ..core.loop import maybe_loop
 from ..core.progress import sub_progress
@@ -225,21 +226,26 @@ class TREE_OT_generate(jobs.JobOperator, bpy.types.Operator):
             params.height_m = None
             y = float(np.array(props.envelope_curve.matrix_world)[1, 3])
             self._cursor = np.array([spec.offset[0], y, spec.offset[1]])
-        return Job(grow_work(model, tree_src, spec, params, audio_path(props)))
+        env = envelopes.envelope_from_any(spec, params.height_m or 10.0)    # kept with the tree (Place Cut)
+        self._growth = (env, params, audio_path(props))
+        return Job(grow_work(model, tree_src, env, *self._growth[1:]))
 
     def done(self, context, result):
         model, trees, _ = result
         name = unique_collection_name(f"{model.name} {context.scene.tree_video.gen_seed}")
         props = context.scene.tree_video
         cuts = [{"path": bpy.path.abspath(props.gen_cut), "at": None}] if props.gen_cut else []
-        return build_generated(self, context, model, trees[0], name, cuts, location=getattr(self, "_cursor", None))
+        env, params, audio = self._growth
+        return build_generated(self, context, model, trees[0], name, cuts, location=getattr(self, "_cursor", None),
+                               inputs=inputs_doc(model, env, params, audio))
 
 
 def build_generated(op, context, model, tree, name: str, cuts: list[dict], replace: bool = False,
-                    location=None) -> set:
+                    location=None, inputs: dict | None = None) -> set:
     """Build the generated ``tree`` of ``model`` as the collection ``name`` (``replace``: in place of
     the one of that name) with the panel's look, standing at ``location`` (an armature's
-    ``matrix_world``, or a point); keep its rest and ``cuts`` for Save Cut and Place Cut."""
+    ``matrix_world``, or a point); keep its rest, ``cuts`` and growth ``inputs``
+    (:func:`core.generate.regrow.inputs_doc`) for Save Cut and Place Cut."""
     props = context.scene.tree_video
     try:
         tree, note = maybe_loop(tree, props.loop_seconds)
@@ -258,7 +264,7 @@ def build_generated(op, context, model, tree, name: str, cuts: list[dict], repla
         rig.matrix_world = location
     else:
         rig.location = np.zeros(3) if location is None else location
-    stored.store_grown(built["collection"], tree, cuts)
+    stored.store_grown(built["collection"], tree, cuts, inputs)
     placed = f", {len(cuts)} cut(s) in it" if cuts else ""
     op.report({"INFO"}, f"'{name}': {tree.n_nodes - 1} branch bones, "
                         f"{tree.leaves.count if tree.leaves is not None else 0} leaf clusters × {tree.n_frames} "

@@ -289,3 +289,20 @@ def test_the_api_saves_and_places_cuts(tmp_path):
     assert info["placed"] == "at"
     _check_unchanged(tree, cut, nodes, info)
 
+
+
+def test_a_kept_growth_grows_the_same_tree(broad, limb):
+    """What a generated tree keeps (core/generate/regrow.py, through JSON) grows it again exactly,
+    its cuts too: Place Cut's regrowth changes only what the new cut changes."""
+    from tree_from_video.core.generate import regrow
+    path, _ = limb
+    env = envelopes.envelope_from_any("heart", 7.0)
+    p = growth.GrowParams(seed=67, height_m=7.0, n_frames=3, node_budget=120, envelope_variation=0.3,
+                          cuts=(cuts.CutSpec(path),))
+    doc = json.loads(json.dumps(regrow.inputs_doc(broad, env, p, None)))
+    model, env2, p2, audio = regrow.inputs_from_doc(doc)
+    p2.cuts = p.cuts
+    a, b = growth.grow_tree(broad, env, p), growth.grow_tree(model, env2, p2)
+    assert p2 == p and audio is None
+    assert np.array_equal(a.parents, b.parents) and np.array_equal(a.nodes3d, b.nodes3d)
+    assert np.array_equal(a.radius, b.radius) and a.meta["cuts"] == b.meta["cuts"]

@@ -97,7 +97,9 @@ def test_generate_and_place_cut_in_blender(tmp_path):
     L = bone_lengths(cut.parents, _rest_nodes(rig, nodes, info["base_node"]))[1:]
     assert np.abs(L / cut.bone_lengths() - 1).max() < 0.01
 
-    # Place Cut: the cursor on a branch of that tree (world), the tree grown again in place
+    # Place Cut: the cursor on a branch of that tree (world), the tree grown again in place, as it
+    # grew: the panel since turned to another species, height and seed changes nothing
+    p.species_name, p.gen_height, p.gen_seed = "sparse", 5.0, 3
     rig.rotation_euler = (0.0, 0.0, 0.5)
     bpy.context.view_layer.update()
     local = np.array([0.6, -0.2, 5.0])
@@ -111,6 +113,8 @@ def test_generate_and_place_cut_in_blender(tmp_path):
     assert np.allclose(rig.location, (6.0, 1.0, 0.0)) and np.isclose(rig.rotation_euler[2], 0.5)
     assert len([c for c in bpy.data.collections if c.name.startswith("broad 19")]) == 1
     kept = stored.kept_tree(coll)
+    assert kept.meta["species"] == "broad" and kept.meta["seed"] == 19
+    assert np.isclose(max(kept.meta["envelope"]["z"]), 8.0, atol=0.01)
     fit, at = kept.meta["cuts"]
     assert at["placed"] == "at" and np.allclose(at["at"], local, atol=1e-4)
     rest = kept.nodes3d[0].astype(np.float64)

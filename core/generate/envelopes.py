@@ -284,6 +284,29 @@ def envelope_meta(env: Envelope) -> EnvelopeMeta:
     return out
 
 
+def envelope_doc(env: Envelope) -> dict:
+    """``env`` as JSON-able full-precision lists (``z``, ``centre``, ``radius``, ``depth_scale``; a
+    :class:`ShapeEnvelope`'s ``polygon``, ``name``, ``offset``): :func:`envelope_from_doc` gives it
+    back exactly (what a generated tree keeps to be grown again)."""
+    doc: dict = {k: np.asarray(getattr(env, k), np.float64).tolist() for k in ("z", "centre", "radius")}
+    doc["depth_scale"] = float(env.depth_scale)
+    if isinstance(env, ShapeEnvelope):
+        doc.update(polygon=None if env.polygon is None else np.asarray(env.polygon, np.float64).tolist(),
+                   name=env.name, offset=None if env.offset is None else np.asarray(env.offset, np.float64).tolist())
+    return doc
+
+
+def envelope_from_doc(doc: dict) -> Envelope:
+    """The envelope :func:`envelope_doc` wrote."""
+    arrays = {k: np.asarray(doc[k], np.float64) for k in ("z", "centre", "radius")}
+    if "polygon" not in doc:
+        return Envelope(**arrays, depth_scale=float(doc.get("depth_scale", 1.0)))
+    return ShapeEnvelope(**arrays, depth_scale=float(doc.get("depth_scale", 1.0)),
+                         polygon=None if doc["polygon"] is None else np.asarray(doc["polygon"], np.float64),
+                         name=str(doc.get("name", "outline")),
+                         offset=None if doc.get("offset") is None else np.asarray(doc["offset"], np.float64))
+
+
 def envelope_from_any(spec, height_m: float, width_m: float | None = None) -> ShapeEnvelope | Envelope:
     """An envelope from a user-facing spec: a topiary name, an image path, an ``(M, 2)`` polygon
     or an :class:`Envelope` (returned as is)."""

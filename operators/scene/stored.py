@@ -95,12 +95,21 @@ def selected_tree(context, what: str) -> Tree3D:
 GROWN_KEY = "_tree_from_video_grown"
 
 
-def store_grown(coll, tree: Tree3D, cuts: list[dict]) -> None:
+def store_grown(coll, tree: Tree3D, cuts: list[dict], inputs: dict | None = None) -> None:
     """Keep what Save Cut and Place Cut read of a generated ``tree`` in its collection ``coll``: its
-    rest pose (frame 1 only: a few kB, not the motion) and its cuts ``[{"path", "at"}]`` (``at``
-    metres in the tree's frame or None)."""
+    rest pose (frame 1 only: a few kB, not the motion), its cuts ``[{"path", "at"}]`` (``at``
+    metres in the tree's frame or None) and what it grew from (``inputs``,
+    :func:`core.generate.regrow.inputs_doc`: species, envelope, settings; None: not kept)."""
     rest = Tree3D(tree.parents, tree.nodes3d[:1], tree.radius, tree.level, tree.fps, tree.name, tree.meta)
-    coll[GROWN_KEY] = {"tree": tree_bytes(rest), "cuts": json.dumps(cuts), "made": time.time()}
+    coll[GROWN_KEY] = {"tree": tree_bytes(rest), "cuts": json.dumps(cuts), "made": time.time(),
+                       "inputs": json.dumps(inputs)}
+
+
+def grown_inputs(coll) -> dict | None:
+    """What the generated tree of ``coll`` grew from (:func:`store_grown`), or None."""
+    if not is_grown(coll):
+        return None
+    return json.loads(str(coll[GROWN_KEY].get("inputs", "null")))
 
 
 def is_grown(coll) -> bool:
