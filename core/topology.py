@@ -84,6 +84,26 @@ def node_depths(parents: np.ndarray) -> np.ndarray:
     return d
 
 
+def subtree_masks(parents: np.ndarray, roots: np.ndarray) -> np.ndarray:
+    """``(R, N)`` bool: node n is in the subtree of ``roots[r]`` (itself included)."""
+    parents = np.asarray(parents)
+    n = len(parents)
+    anc = np.arange(n)
+    member = np.zeros((len(roots), n), bool)
+    for _ in range(n):                         # walk every node up one level at a time (depth steps)
+        member |= anc[None] == np.asarray(roots)[:, None]
+        up = anc >= 0
+        if not up.any():
+            break
+        anc = np.where(up, parents[np.maximum(anc, 0)], -1)
+    return member
+
+
+def subtree(parents: np.ndarray, roots: np.ndarray) -> np.ndarray:
+    """``(N,)`` bool: ``roots`` and every node below them."""
+    return subtree_masks(parents, np.asarray(roots, np.int64)).any(axis=0)
+
+
 def branching_level(parents: np.ndarray) -> np.ndarray:
     """Branching order per node: 0 on the trunk, +1 below every node with two or more children."""
     ch = children_lists(parents)

@@ -21,7 +21,7 @@ import numpy as np
 
 from .errors import InputError
 from .fileio import atomic_write_bytes
-from .topology import topological_order
+from .topology import subtree, topological_order
 
 FORMAT = "tree_from_video.cut"
 VERSION = 1
@@ -66,7 +66,6 @@ class TreeCut:
         return bone_lengths(self.parents, self.rest)[1:]
 
 
-
 def bone_lengths(parents: np.ndarray, pos: np.ndarray) -> np.ndarray:
     """``(N,)`` metres of the bone into each node (0 for a root)."""
     p = np.asarray(parents)
@@ -74,17 +73,6 @@ def bone_lengths(parents: np.ndarray, pos: np.ndarray) -> np.ndarray:
     has = p >= 0
     out[has] = np.linalg.norm(pos[has] - pos[p[has]], axis=1)
     return out
-
-
-def subtree(parents: np.ndarray, roots: np.ndarray) -> np.ndarray:
-    """``(N,)`` bool: ``roots`` and every node below them."""
-    mask = np.zeros(len(parents), bool)
-    mask[np.asarray(roots, np.int64)] = True
-    for n in topological_order(parents):
-        p = parents[n]
-        if p >= 0 and mask[p]:
-            mask[n] = True
-    return mask
 
 
 # ----------------------------------------------------------------------------- a cut from a tree

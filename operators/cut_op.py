@@ -42,9 +42,13 @@ def _selectable(ob, name: str):
     return pb if hasattr(pb, "select") else ob.data.bones[name]
 
 
+def _selected(ob):
+    return (b.name for b in ob.data.bones if BRANCH_BONE.match(b.name) and _selectable(ob, b.name).select)
+
+
 def selected_branch_bones(ob) -> list[str]:
     """Names of the branch bones selected on the armature object ``ob`` (Pose or Object Mode)."""
-    return [b.name for b in ob.data.bones if BRANCH_BONE.match(b.name) and _selectable(ob, b.name).select]
+    return list(_selected(ob))
 
 
 def select_bones(ob, names) -> None:
@@ -58,7 +62,7 @@ def _rig_problem(context) -> str | None:
     ob = getattr(context, "active_object", None)
     if ob is None or ob.type != "ARMATURE":
         return "select a tree's rig, then the bones of a branch in Pose Mode"
-    if not selected_branch_bones(ob):
+    if next(_selected(ob), None) is None:                # a poll: stop at the first selected one
         return "select the bones of a branch (Pose Mode); the cut takes them and every bone beyond them"
     return None
 
@@ -146,7 +150,7 @@ class TREE_OT_place_cut(jobs.JobOperator, bpy.types.Operator):
                                "on the branch the cut should grow from")
         if jobs.running():
             return refuse(cls, "a job is running; wait for it to finish or press Cancel")
-        why = None if stored.grown_inputs(found[0]) is not None else why_not(context, props)   # kept: no panel
+        why = None if stored.has_grown_inputs(found[0]) else why_not(context, props)   # kept: no panel
         return refuse(cls, why) if why else True
 
     def make_job(self, context) -> Job:

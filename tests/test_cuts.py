@@ -14,8 +14,10 @@ from tree_from_video.core.asset.cut_mesh import with_mesh
 from tree_from_video.core.errors import InputError
 from tree_from_video.core.generate import cuts, envelopes, growth
 from tree_from_video.core.generate.batch import load_species_spec
+from tree_from_video.core.rotations import quat_to_matrix, rodrigues, swing
+from tree_from_video.core.topology import subtree
 from tree_from_video.core.tree3d import Tree3D, pipe_radii
-from tree_from_video.core.tree_cut import bone_lengths, cut_from_tree, load_cut, save_cut, subtree
+from tree_from_video.core.tree_cut import bone_lengths, cut_from_tree, load_cut, save_cut
 
 from trees import broad_tree
 
@@ -32,13 +34,14 @@ def _hand_tree() -> Tree3D:
 
 # ----------------------------------------------------------------------------- by hand
 
-def test_align_and_about_by_hand():
-    R = cuts.align(np.array([1.0, 0, 0]), np.array([0, 0, 1.0]))
+def test_the_placing_rotations_by_hand():
+    """Placement turns a cut by ``rodrigues(ψ d) · quat_to_matrix(swing(u, d))`` (core.rotations)."""
+    R = quat_to_matrix(swing(np.array([1.0, 0, 0]), np.array([0, 0, 1.0])))
     assert np.allclose(R @ [1, 0, 0], [0, 0, 1]) and np.allclose(R @ R.T, np.eye(3))
     assert np.allclose(R @ [0, 1, 0], [0, 1, 0])                  # the shortest turn keeps the normal
-    opp = cuts.align(np.array([0, 0, 1.0]), np.array([0, 0, -1.0]))
+    opp = quat_to_matrix(swing(np.array([0, 0, 1.0]), np.array([0, 0, -1.0])))
     assert np.allclose(opp @ [0, 0, 1], [0, 0, -1]) and np.isclose(np.linalg.det(opp), 1.0)
-    Rz = cuts.about(np.array([0, 0, 1.0]), np.array([math.pi / 2]))[0]
+    Rz = rodrigues(np.array([[0, 0, math.pi / 2]]))[0]
     assert np.allclose(Rz @ [1, 0, 0], [0, 1, 0])
 
 

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..topology import children_lists, node_depths
+from ..topology import children_lists, node_depths, subtree_masks
 
 #: a fork's exponent is searched in this range
 EXPONENT_RANGE = (0.5, 8.0)
@@ -130,21 +130,6 @@ def allometry_report(parents: np.ndarray, pos: np.ndarray, radius: np.ndarray, m
     return out
 
 
-def _subtree_masks(parents: np.ndarray, roots: np.ndarray) -> np.ndarray:
-    """``(R, N)`` bool: node n is in the subtree of ``roots[r]`` (itself included)."""
-    parents = np.asarray(parents)
-    n = len(parents)
-    anc = np.arange(n)
-    member = np.zeros((len(roots), n), bool)
-    for _ in range(n):                         # walk every node up one level at a time (depth steps)
-        member |= anc[None] == np.asarray(roots)[:, None]
-        up = anc >= 0
-        if not up.any():
-            break
-        anc = np.where(up, parents[np.maximum(anc, 0)], -1)
-    return member
-
-
 def _rotate(v: np.ndarray, k: np.ndarray, theta) -> np.ndarray:
     """Rodrigues: ``v (..., 3)`` turned by ``theta`` about the unit axis ``k (3,)``."""
     theta = np.asarray(theta, np.float64)[..., None]
@@ -180,7 +165,7 @@ def holton_pose(parents: np.ndarray, pos: np.ndarray, anchor: np.ndarray, radius
     if not fork:
         return pos, {"forks": 0, "turned": 0}
     pair = np.array([sorted(kids[n], key=lambda c: -r[c]) for n in fork])      # (F, 2): thicker first
-    subs = _subtree_masks(parents, pair.T.ravel())
+    subs = subtree_masks(parents, pair.T.ravel())
     F = len(fork)
     anchor = np.asarray(anchor, bool)
     grid = np.radians(np.arange(-180.0, 180.0, 1.0))

@@ -36,8 +36,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
-from ..topology import topological_order
-from ..tree_cut import UP, TreeCut, bone_lengths, subtree
+from ..rotations import quat_to_matrix, rodrigues, swing
+from ..topology import subtree, topological_order
+from ..tree_cut import UP, TreeCut, bone_lengths
 
 #: rolls ψ tried about the parent bone (evenly over a turn)
 ROLLS = 24
@@ -74,40 +75,21 @@ def bone_angles(parents: np.ndarray, pos: np.ndarray, into_root: np.ndarray | No
     return out
 
 
-def align(u: np.ndarray, d: np.ndarray) -> np.ndarray:
-    """``(3, 3)`` the shortest rotation taking unit ``u`` onto unit ``d`` (Rodrigues:
-    ``R = I + [k]× + [k]×² (1 − c) / s²``, ``k = u × d``, ``c = u·d``, ``s = |k|``; a half turn about
-    any axis normal to ``u`` when they are opposite)."""
-    u = np.asarray(u, np.float64) / np.linalg.norm(u)
-    d = np.asarray(d, np.float64) / np.linalg.norm(d)
-    k = np.cross(u, d)
-    c, s = float(u @ d), float(np.linalg.norm(k))
-    if s < 1e-9:
-        if c > 0:
-            return np.eye(3)
-        n = np.cross(u, [1.0, 0.0, 0.0] if abs(u[0]) < 0.9 else [0.0, 1.0, 0.0])
-        n /= np.linalg.norm(n)
-        return 2.0 * np.outer(n, n) - np.eye(3)
-    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-    return np.eye(3) + K + K @ K * ((1.0 - c) / s ** 2)
-
-
-def about(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
-    """``(..., 3, 3)`` rotations by ``angle (...)`` radians about the unit ``axis (3,)`` (Rodrigues)."""
-    a = np.asarray(axis, np.float64)
-    K = np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
-    t = np.asarray(angle, np.float64)[..., None, None]
-    return np.eye(3) + np.sin(t) * K + (1.0 - np.cos(t)) * (K @ K)
+def segment_distances(pts: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Distance ``(S, P)`` from points ``pts (P, D)`` to segments ``a → b (S, D)`` (any D; the
+    growth's 2D attractors use it too)."""
+    ab = b - a
+    ap = pts[None] - a[:, None]                                                  # (S, P, D)
+    t = np.clip(np.einsum("spd,sd->sp", ap, ab) / np.maximum(np.sum(ab * ab, 1), 1e-18)[:, None], 0, 1)
+    d = ap - t[..., None] * ab[:, None]
+    return np.sqrt(np.sum(d * d, -1))
 
 
 def segment_distance(pts: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """``(P,)`` metres from each of ``pts (P, 3)`` to the nearest of the segments ``a → b (S, 3)``."""
     if len(a) == 0:
         return np.full(len(pts), np.inf)
-    ab = b - a
-    ap = pts[:, None] - a[None]                                               # (P, S, 3)
-    t = np.clip(np.einsum("psd,sd->ps", ap, ab) / np.maximum(np.sum(ab * ab, 1), 1e-18)[None], 0.0, 1.0)
-    return np.sqrt(np.sum((ap - t[..., None] * ab[None]) ** 2, -1)).min(axis=1)
+    return segment_distances(pts, a, b).min(axis=0)
 
 
 def carriers(parents: np.ndarray, marked: np.ndarray) -> np.ndarray:
@@ -221,7 +203,7 @@ def place_cut(parents: np.ndarray, rest: np.ndarray, radius: np.ndarray, cut: Tr
         pa = parents[A]
         d = UP if pa < 0 else rest[A] - rest[pa]
         d = d / max(float(np.linalg.norm(d)), 1e-12)
-        R = about(d, psi) @ align(cut.parent_dir, d)                       # (ROLLS, 3, 3)
+        R = rodrigues(psi[:, None] * d) @ quat_to_matrix(swing(cut.parent_dir, d))     # (ROLLS, 3, 3)
         P = rest[A] + np.einsum("rij,mj->rmi", R, cut.rest)                 # (ROLLS, M, 3)
         ins = inside(P[:, 1:].reshape(-1, 3)).reshape(ROLLS, -1).mean(axis=1)
         hit, damage = np.zeros(ROLLS), np.zeros(ROLLS)

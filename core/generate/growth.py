@@ -59,7 +59,7 @@ from ..tree3d import Tree3D, pipe_radii
 from ..tree_cut import load_cut
 from .allometry import allometry_report, holton_pose
 from .crown_space import contour_space, varied_envelope, varied_leaf_colour
-from .cuts import CutSpec, place_cuts
+from .cuts import CutSpec, place_cuts, segment_distances
 from .envelopes import RASTER_ROWS, Region2D, envelope_meta, region_of
 from .species import SpeciesModel, library_contours
 from .sway import forward_kinematics, sample_rotations
@@ -173,15 +173,6 @@ def scale_envelope(env: Envelope, factor: float) -> Envelope:
     return out
 
 
-def _seg_dist(pts: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Distance ``(L, K)`` from points ``pts (K, 2)`` to segments ``a (L, 2)`` → ``b (L, 2)``."""
-    ab = b - a                                                       # (L, 2)
-    ap = pts[None] - a[:, None]                                      # (L, K, 2)
-    t = np.clip(np.einsum("lkd,ld->lk", ap, ab) / np.maximum(np.sum(ab * ab, 1), 1e-18)[:, None], 0, 1)
-    d = ap - t[..., None] * ab[:, None]
-    return np.sqrt(np.sum(d * d, -1))
-
-
 def stem_top(region: Region2D) -> float:
     """Lowest height where Ω' is at least 30 % of its widest."""
     H = region.height()
@@ -223,7 +214,7 @@ def grow_2d(model: SpeciesModel, region: Region2D, p: GrowParams, rng: np.random
     par = [-1, 0]
     total = 1 + n_seg(zt)
     attr = region.attractors(p.attractors)
-    d_cur = _seg_dist(attr, pos[0][None], pos[1][None])[0]
+    d_cur = segment_distances(attr, pos[0][None], pos[1][None])[0]
     live = [1]
     fails: dict[int, int] = {}
     stopped = "no growing tip left"
@@ -282,8 +273,8 @@ def grow_2d(model: SpeciesModel, region: Region2D, p: GrowParams, rng: np.random
         if total + need > budget:            # stop here: skipping this pair would favour short ones
             stopped = "node budget reached"
             break
-        dn = np.minimum(_seg_dist(attr, np.repeat(pos[i][None], len(phi), 0), ends[0]),
-                        _seg_dist(attr, np.repeat(pos[i][None], len(phi), 0), ends[1]))   # (L, K)
+        dn = np.minimum(segment_distances(attr, np.repeat(pos[i][None], len(phi), 0), ends[0]),
+                        segment_distances(attr, np.repeat(pos[i][None], len(phi), 0), ends[1]))   # (L, K)
         gain = np.maximum(d_cur[None] - dn, 0.0).sum(1) * valid                       # E (Eq. 5–6)
         angle = np.exp(-phi ** 2 / (2 * sigma ** 2))                                  # angle term
         # tropism: each new branch's angle γ from the vertical against the example's (mean, std)
@@ -422,9 +413,11 @@ def species_radii(parents: np.ndarray, height: float, widths: tuple | None, tip:
         e = (float(np.clip(np.log(n_tips) / np.log(ratio), 1.5, 4.0)) if ratio > 1 and n_tips > 1 else 2.0) \
             if exponent is None else float(exponent)
         tip_m = tip_w * height
-        if exponent is None and tip is None:          # scaled so the trunk base is trunk·H (radii scale with the tips')
-            r0 = float(pipe_radii(parents, tip_m, e)[0])
-            tip_m = tip_m * (trunk * height / r0) if r0 > 0 else tip_m
+        r = pipe_radii(parents, tip_m, e)
+        k = trunk * height / float(r[0]) if exponent is None and tip is None and r[0] > 0 else 1.0  # trunk·H
+        if fixed is None:
+            return (r * k).astype(np.float32)
+        tip_m *= k                                    # pipe radii scale with the tips'; the cuts' stay
     return pipe_radii(parents, tip_m, e, fixed).astype(np.float32)
 
 

@@ -105,6 +105,11 @@ def store_grown(coll, tree: Tree3D, cuts: list[dict], inputs: dict | None = None
                        "inputs": json.dumps(inputs)}
 
 
+def has_grown_inputs(coll) -> bool:
+    """Whether the generated tree of ``coll`` kept what it grew from (a poll's check: not parsed)."""
+    return is_grown(coll) and str(coll[GROWN_KEY].get("inputs", "null")) != "null"
+
+
 def grown_inputs(coll) -> dict | None:
     """What the generated tree of ``coll`` grew from (:func:`store_grown`), or None."""
     if not is_grown(coll):
