@@ -7,7 +7,6 @@ from __future__ import annotations
 import os
 
 import bpy
-import numpy as np
 
 from ..core.asset.billboard import BILLBOARD_PX, DEFAULT_PX
 from ..core.asset.billboard import FILES as BILLBOARD_FILES
@@ -15,25 +14,7 @@ from ..core.errors import InputError
 from ..core.fileio import write_files
 from .scene import trees
 from .scene.checks import refuse
-from .scene.outputs import billboard_render
-
-
-def billboard_meshes(coll) -> list:
-    """What a tree's billboard shows: its first level of detail, else its branch and leaf meshes."""
-    meshes = [ob for ob in coll.all_objects if ob.type == "MESH"]
-    lod0 = [ob for ob in meshes if ob.name.endswith("_LOD0")]
-    return lod0 or [ob for ob in meshes if ob.name in (f"{coll.name} Branches", f"{coll.name} Leaves")]
-
-
-def rest_points(meshes) -> np.ndarray:
-    """``(P, 3)`` world metres of the meshes' vertices at rest (their data, not the posed shape)."""
-    out = []
-    for ob in meshes:
-        co = np.empty(len(ob.data.vertices) * 3, np.float32)
-        ob.data.vertices.foreach_get("co", co)
-        mw = np.array(ob.matrix_world, np.float64)
-        out.append(co.reshape(-1, 3).astype(np.float64) @ mw[:3, :3].T + mw[:3, 3])
-    return np.concatenate(out)
+from .scene.outputs import billboard_meshes, billboard_render, rest_points
 
 
 def _one_tree(context):

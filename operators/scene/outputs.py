@@ -110,17 +110,28 @@ def write_outputs(tree: Tree3D, out_dir: str, wanted: dict, overwrite: bool = Fa
 
 
 def billboard(built: dict, tree_name: str, px: int) -> dict[str, bytes]:
-    """The billboard files of a tree ``build_tree`` made (``built``): its first level (or its branch
-    and leaf meshes) rendered at rest from the front, framed on their rest points."""
-    asset = built["asset"]
-    if built["lods"]:
-        meshes, parts = [built["lods"][0]], [asset.lods[0].branches, asset.lods[0].leaves]
-    else:
-        meshes = [ob for ob in (built["mesh"], built["leaves"]) if ob is not None]
-        parts = [asset.branches, asset.leaves]
-    pts = np.concatenate([m.co for m in parts if m is not None])
-    offset = np.asarray(built["armature"].matrix_world.translation, np.float64)    # a shot's tree stands apart
-    return billboard_render(built["armature"], meshes, pts + offset, tree_name, px)
+    """The billboard files of a tree ``build_tree`` made (``built``): :func:`billboard_meshes`
+    rendered at rest from the front, framed on their rest points."""
+    meshes = billboard_meshes(built["collection"])
+    return billboard_render(built["armature"], meshes, rest_points(meshes), tree_name, px)
+
+
+def billboard_meshes(coll) -> list:
+    """What a tree's billboard shows: its first level of detail, else its branch and leaf meshes."""
+    meshes = [ob for ob in coll.all_objects if ob.type == "MESH"]
+    lod0 = [ob for ob in meshes if ob.name.endswith("_LOD0")]
+    return lod0 or [ob for ob in meshes if ob.name in (f"{coll.name} Branches", f"{coll.name} Leaves")]
+
+
+def rest_points(meshes) -> np.ndarray:
+    """``(P, 3)`` world metres of the meshes' vertices at rest (their data, not the posed shape)."""
+    out = []
+    for ob in meshes:
+        co = np.empty(len(ob.data.vertices) * 3, np.float32)
+        ob.data.vertices.foreach_get("co", co)
+        mw = np.array(ob.matrix_world, np.float64)
+        out.append(co.reshape(-1, 3).astype(np.float64) @ mw[:3, :3].T + mw[:3, 3])
+    return np.concatenate(out)
 
 
 def billboard_render(rig, meshes, points: np.ndarray, tree_name: str, px: int) -> dict[str, bytes]:
