@@ -31,6 +31,16 @@ def empty_stage():
     return props
 
 
+def side_by_side(tree, gap: float, left: tuple, right: tuple) -> tuple[dict, dict]:
+    """``tree`` built twice without leaves, ``left`` and ``right`` each ``(name, build_tree
+    keywords)``, the right one ``gap`` metres along x: the two looks a shot compares."""
+    from tree_from_video.operators.scene import build
+    a = build.build_tree(bpy.context, tree, left[0], leaves=False, **left[1])
+    b = build.build_tree(bpy.context, tree, right[0], leaves=False, **right[1])
+    b["armature"].location.x = gap
+    return a, b
+
+
 def material_view(space, location, distance: float, rotation=(0.71, 0.70, 0.0, 0.0)) -> None:
     """The 3D view ``space`` in Material Preview without overlays, in perspective, looking at
     ``location`` from ``distance`` metres (``rotation`` the view's quaternion: from the front,

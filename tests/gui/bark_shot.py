@@ -9,17 +9,15 @@ import os
 import sys
 import tempfile
 
-import bpy
 import cv2
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))   # this folder: _addon.py
-from _addon import empty_stage, show_material  # noqa: E402
+from _addon import empty_stage, show_material, side_by_side  # noqa: E402
 
 empty_stage()
 from bark_photos import bark_photo  # noqa: E402
 
 from tree_from_video.core.detail.bark_photo import BarkPhotoParams, bark_maps  # noqa: E402
-from tree_from_video.operators.scene import build  # noqa: E402
 
 from trees import broad_tree  # noqa: E402
 
@@ -27,9 +25,7 @@ photo, _, _ = bark_photo(5, size=(720, 960))
 cv2.imwrite(os.path.join(tempfile.gettempdir(), "tfv_bark_photo.jpg"), photo)
 maps = bark_maps([photo], BarkPhotoParams(scale_cm=60.0))
 tree = broad_tree(24)
-plain = build.build_tree(bpy.context, tree, "Procedural", bark="rough", leaves=False)
-photo_tree = build.build_tree(bpy.context, tree, "From Photo", leaves=False, bark_maps=maps)
-photo_tree["armature"].location.x = 1.0
+side_by_side(tree, 1.0, ("Procedural", {"bark": "rough"}), ("From Photo", {"bark_maps": maps}))
 print(f"bark tile: moss {maps.moss[0]:.1%} -> {maps.moss[1]:.1%}, lichen {maps.lichen[0]:.1%} -> {maps.lichen[1]:.1%}",
       flush=True)
 

@@ -8,23 +8,19 @@ one closed surface), Material Preview, close on its first forks, posed mid-sway.
 import os
 import sys
 
-import bpy
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))   # this folder: _addon.py
-from _addon import empty_stage, show_material  # noqa: E402
+from _addon import empty_stage, show_material, side_by_side  # noqa: E402
 
 empty_stage()
 from tree_from_video.core import bones  # noqa: E402
-from tree_from_video.operators.scene import build  # noqa: E402
 
 from trees import broad_tree  # noqa: E402
 
 tree = broad_tree(48)
 GAP = 1.1
-overlap = build.build_tree(bpy.context, tree, "Overlap", forks="overlap", leaves=False)
-joined = build.build_tree(bpy.context, tree, "Joined", forks="joined", leaves=False)
-joined["armature"].location.x = GAP
+overlap, joined = side_by_side(tree, GAP, ("Overlap", {"forks": "overlap"}), ("Joined", {"forks": "joined"}))
 edges = bones.bone_edges(tree.parents)
 n_out = np.bincount(edges[:, 0], minlength=len(tree.parents))
 first = int(np.flatnonzero(n_out >= 2)[0])

@@ -9,21 +9,16 @@ height map in the mesh), close on the trunk, posed mid-sway: Material Preview ab
 import os
 import sys
 
-import bpy
-
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))   # this folder: _addon.py
-from _addon import empty_stage, show_material  # noqa: E402
+from _addon import empty_stage, show_material, side_by_side  # noqa: E402
 
 empty_stage()
-from tree_from_video.operators.scene import build  # noqa: E402
 
 from trees import broad_tree  # noqa: E402
 
 tree = broad_tree(48)
 GAP = 0.9
-plain = build.build_tree(bpy.context, tree, "Shaded", bark="rough", leaves=False)
-relief = build.build_tree(bpy.context, tree, "Relief", bark="rough", relief_cm=5.0, leaves=False)
-relief["armature"].location.x = GAP
+plain, relief = side_by_side(tree, GAP, ("Shaded", {"bark": "rough"}), ("Relief", {"bark": "rough", "relief_cm": 5.0}))
 base = tree.nodes3d[0, 0].astype(float)
 print(f"polygons: shaded {len(plain['mesh'].data.polygons)}, relief {len(relief['mesh'].data.polygons)}", flush=True)
 
