@@ -5,8 +5,8 @@ branch at the 3D cursor, in place. The placed cut's bones in the rig are the sav
 and angles within 1 %)."""
 import numpy as np
 import pytest
+from test_cuts import bone_angles
 
-from tree_from_video.core.generate import cuts
 from tree_from_video.core.tree_cut import bone_lengths, cut_from_tree, load_cut
 
 from trees import (
@@ -127,8 +127,8 @@ def test_generate_and_place_cut_in_blender(tmp_path):
         pos = _rest_nodes(rig, nodes, info["base_node"])
         L = bone_lengths(cut.parents, pos)[1:]
         assert np.abs(L / cut.bone_lengths() - 1).max() < 0.01
-        a_new = cuts.bone_angles(cut.parents, pos)[1:]
-        a_old = cuts.bone_angles(cut.parents, cut.rest)[1:]
+        a_new = bone_angles(cut.parents, pos)[1:]
+        a_old = bone_angles(cut.parents, cut.rest)[1:]
         ok = np.isfinite(a_old)
         assert np.abs(a_new[ok] - a_old[ok]).max() < 0.01 * np.abs(a_old[ok]).max()
 

@@ -56,25 +56,6 @@ CUT_IDS = 1_000_000
 
 # ----------------------------------------------------------------------------- geometry
 
-def bone_angles(parents: np.ndarray, pos: np.ndarray, into_root: np.ndarray | None = None) -> np.ndarray:
-    """``(N,)`` radians between the bone into each node and its parent's bone (nan for a root;
-    for a child of a root, the angle with ``into_root`` when given, else nan)."""
-    p = np.asarray(parents)
-    out = np.full(len(p), np.nan)
-    d = np.zeros((len(p), 3))
-    has = p >= 0
-    v = pos[has] - pos[p[has]]
-    d[has] = v / np.maximum(np.linalg.norm(v, axis=1, keepdims=True), 1e-12)
-    gp = np.where(has, p[np.maximum(p, 0)], -1)
-    inner = has & (gp >= 0)
-    out[inner] = np.arccos(np.clip(np.sum(d[inner] * d[p[inner]], axis=1), -1.0, 1.0))
-    if into_root is not None:
-        first = has & (gp < 0)
-        u = np.asarray(into_root, np.float64)
-        out[first] = np.arccos(np.clip(d[first] @ (u / np.linalg.norm(u)), -1.0, 1.0))
-    return out
-
-
 def segment_distances(pts: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Distance ``(S, P)`` from points ``pts (P, D)`` to segments ``a → b (S, D)`` (any D; the
     growth's 2D attractors use it too)."""
