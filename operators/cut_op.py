@@ -138,10 +138,9 @@ class TREE_OT_place_cut(jobs.JobOperator, bpy.types.Operator):
     @classmethod
     def poll(cls, context):
         props = getattr(context.scene, "tree_video", None)
-        if props is not None and not props.gen_cut:
-            return refuse(cls, "no Cut chosen; pick a .npz saved by Save Cut")
         if props is not None:
-            problem = missing_file(props.gen_cut, "tree-cut", "Place Cut")
+            problem = (missing_file(props.gen_cut, "tree-cut", "Place Cut") if props.gen_cut
+                       else "no Cut chosen; pick a .npz saved by Save Cut")
             if problem:
                 return refuse(cls, problem)
         found = _grown_rig(context)
