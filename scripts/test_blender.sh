@@ -94,6 +94,9 @@ echo "== Blender 4.3 GUI: Save Cut on a tree's limb, a generated tree that conta
 shot cuts 1600x900 20 cut_shot.py "Save Cut or Generate with a cut failed in the GUI" "save cut: {'FINISHED'}" \
   "generate with the cut: {'FINISHED'}" "'bones': 33" "ui ready"
 
+echo "== Blender 4.3 GUI: a bark photo's moss on the upper side of the limbs and the trunk's north side, Moss 0 beside Moss 2"
+shot moss 1600x900 45 moss_shot.py "the mossy bark did not build in the GUI" "moss cover: 0.0% and" "ui ready"
+
 echo "== Blender 4.3 GUI: Track & Preview drawn over the clip in the Movie Clip editor"
 shot clip 1600x900 15 clip_shot.py "Track & Preview did not open the clip editor in the GUI" "preview: {'FINISHED'}" \
   "clip editor opened by the operator: clip video.mp4, frame 1" "sidebar True on tab 'Tree'" "clip ready"

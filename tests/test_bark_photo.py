@@ -114,3 +114,27 @@ def test_the_same_seed_gives_the_same_tile_and_bad_photos_are_one_line(tmp_path)
         with pytest.raises(InputError, match=needle) as exc:
             bp.read_bark_photo(str(path))
         assert "\n" not in str(exc.value)
+
+
+def test_the_uv_square_puts_the_moss_on_the_branches_upper_side():
+    """uv_square moves the tile's moss to the columns of u ≡ U_UP (the tubes' upper side,
+    branch_mesh.up_offsets): the same cover, ≥ 5× as dense in the upper quarter as in the lower."""
+    from tree_from_video.core.detail.branch_mesh import U_UP
+    photo, _, _ = bark_photo(9, moss_share=0.1)
+    # by hand: four columns at u = ⅛, ⅜, ⅝, ⅞ around U_UP = ½: ½ (1 + cos 2π(u − ½))
+    assert U_UP == 0.5
+    np.testing.assert_allclose(bp.up_weight(4), [0.5 - 0.5 ** 1.5, 0.5 + 0.5 ** 1.5, 0.5 + 0.5 ** 1.5, 0.5 - 0.5 ** 1.5])
+    for k in (0.0, 1.0, 2.0):
+        maps = bp.bark_maps([photo], bp.BarkPhotoParams(**{**SMALL.__dict__, "moss": k}))
+        albedo, _, rough, repeats = bp.uv_square(maps, 0.3)
+        seen, _ = bp.moss_lichen(cv2.cvtColor(albedo, cv2.COLOR_RGB2BGR))     # measured by colour
+        up = bp.up_weight(seen.shape[1])
+        top, bottom = seen[:, up > 0.85].mean(), seen[:, up < 0.15].mean()
+        print(f"\nMoss {k}: {repeats}×{repeats} tiles, cover {100 * seen.mean():.1f} % (tile {100 * maps.moss[1]:.1f} %), "
+              f"upper side {100 * top:.1f} %, underside {100 * bottom:.1f} %")
+        if k == 0.0:
+            assert seen.mean() < 0.005
+            continue
+        assert seen.mean() == pytest.approx(maps.moss[1], rel=0.25)
+        assert top >= 5.0 * bottom and top > 2.0 * seen.mean()
+        assert rough[seen].mean() > 0.88                                          # moss's roughness where it went

@@ -14,6 +14,8 @@ from bark_photos import bark_photo
 from job_report import check_report
 from test_exports import read_glb
 
+from tree_from_video.core.detail.bark_photo import moss_lichen
+
 from samples import ROOT, committed
 
 pytestmark = [pytest.mark.bpy53]
@@ -64,6 +66,62 @@ def test_the_bark_photo_reaches_the_glb(tmp_path):
     written = sorted(os.listdir(out / "textures"))                    # USD: the images beside it
     assert [n for n in written if "Bark" in n] == ["Tree_video_Bark_albedo.png", "Tree_video_Bark_normal.png",
                                                    "Tree_video_Bark_roughness.png"]
+
+
+def glb_array(doc, binary, index) -> np.ndarray:
+    """Accessor ``index`` of a GLB as the glTF 2.0 specification (§3.6 Accessors) lays it out: its
+    componentType (5121/5123/5125 unsigned 8/16/32-bit, 5126 float32) and type (SCALAR, VEC2-4) over
+    its bufferView's bytes, ``byteStride`` or tightly packed."""
+    a = doc["accessors"][index]
+    dtype = {5121: np.uint8, 5123: np.uint16, 5125: np.uint32, 5126: np.float32}[a["componentType"]]
+    width = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4}[a["type"]]
+    view = doc["bufferViews"][a["bufferView"]]
+    start = view.get("byteOffset", 0) + a.get("byteOffset", 0)
+    item = np.dtype(dtype).itemsize * width
+    stride = view.get("byteStride", item)
+    rows = np.frombuffer(binary, np.uint8, stride * (a["count"] - 1) + item, start)
+    rows = np.lib.stride_tricks.as_strided(rows, (a["count"], item), (stride, 1))
+    return np.ascontiguousarray(rows).view(dtype).reshape(a["count"], width)
+
+
+def test_moss_grows_on_the_branches_upper_side_in_the_glb(tmp_path):
+    """The glTF carries the moss where it grows: read back (positions, normals, UVs, indices, the
+    base colour image) from the GLB alone, the faces whose normal points up (glTF's +Y, > 0.5) show
+    moss by colour at least 3 × as often as the faces that point down (< −0.5)."""
+    photo, _, _ = bark_photo(5, moss_share=0.12)
+    path = tmp_path / "bark.jpg"
+    cv2.imwrite(str(path), photo)
+    out = tmp_path / "mossy"
+    code, err = run(VIDEO, "--outline", OUTLINE, "--out", out, *QUICK, "--gltf", "--bark-image", path,
+                    "--moss", "1", "--bark-scale", "40")
+    assert code == 0, err
+    doc, binary = read_glb(out / "tree.glb")
+    bark = next(i for i, m in enumerate(doc["materials"]) if "Bark" in m["name"])
+    pbr = doc["materials"][bark]["pbrMetallicRoughness"]
+    albedo = glb_image(doc, binary, doc["textures"][pbr["baseColorTexture"]["index"]]["source"])
+    moss, _ = moss_lichen(albedo)
+    H, W = moss.shape
+    up, seen = [], []
+    for mesh in doc["meshes"]:
+        for prim in mesh["primitives"]:
+            if prim.get("material") != bark:
+                continue
+            tri = glb_array(doc, binary, prim["indices"]).reshape(-1, 3)
+            normal = glb_array(doc, binary, prim["attributes"]["NORMAL"])
+            uv = glb_array(doc, binary, prim["attributes"]["TEXCOORD_0"])
+            n = normal[tri].mean(axis=1)
+            n /= np.linalg.norm(n, axis=1, keepdims=True)
+            c = uv[tri].mean(axis=1)                  # glTF UV: (0, 0) the image's top-left, repeating
+            col = np.floor(np.mod(c[:, 0], 1.0) * W).astype(int)
+            row = np.floor(np.mod(c[:, 1], 1.0) * H).astype(int)
+            up.append(n[:, 1])
+            seen.append(moss[row, col])
+    up, seen = np.concatenate(up), np.concatenate(seen)
+    top, bottom = seen[up > 0.5].mean(), seen[up < -0.5].mean()
+    print(f"\nGLB moss: {100 * top:.1f} % of the {int((up > 0.5).sum())} upward faces, {100 * bottom:.1f} % of the "
+          f"{int((up < -0.5).sum())} downward ones; {100 * moss.mean():.1f} % of the texture")
+    assert (up > 0.5).sum() > 50 and (up < -0.5).sum() > 50
+    assert top > 0.1 and top >= 3.0 * bottom
 
 
 def test_a_bad_bark_photo_is_one_line(tmp_path):

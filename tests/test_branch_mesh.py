@@ -182,8 +182,42 @@ def test_v_is_continuous_from_parent_to_child(tree, curliness):
     np.testing.assert_allclose(parent_end, g["v"][parents_bone[child], -1], atol=1e-12)
     np.testing.assert_allclose(v_at_head, parent_end, atol=1e-9)
     assert (np.diff(g["v"], axis=1) > 0).all()                                        # increasing along
-    u = g["uv"][:, 0]
-    assert u.min() >= 0 and u.max() <= 1
+    u = g["uv"][:, 0].reshape(len(parents_bone), -1)[:, :4 * S * (K - 1)].reshape(-1, 4)   # side quads
+    assert u.min() >= 0 and u.max() <= 2                                              # each tube from [0, 1)
+    np.testing.assert_allclose(np.ptp(u, axis=1), 1.0 / S, atol=1e-12)               # no quad across the seam
+
+
+def _upper_side(g, b, j):
+    """The unit direction from ring ``j`` of bone ``b``'s centre at ``u ≡ U_UP``."""
+    S = g["sides"]
+    co = g["co"].reshape(len(g["r0"]), g["rings"], S, 3)[b, j] - g["centre"][b, j]
+    theta = 2 * np.pi * (bm.U_UP - g["u0"][b, j])          # u = k/S + u0 = θ/2π + u0
+    x, z = co[0] / np.linalg.norm(co[0]), co[S // 4] / np.linalg.norm(co[S // 4])   # θ = 0, θ = π/2
+    return np.cos(theta) * x + np.sin(theta) * z
+
+
+@pytest.mark.parametrize("curliness", [0.0, 0.6])
+def test_the_upper_side_of_every_ring_is_at_u_up_by_hand(curliness):
+    # a vertical trunk, a level limb along +x, a level limb along −y, a limb at 45° and a twig hanging down
+    parents = np.array([-1, 0, 1, 1, 1, 1])
+    pos = np.array([[0, 0, 0], [0, 0, 2.0], [1.5, 0, 2.0], [0, -1.2, 2.0], [0.7, 0.7, 2.99], [0.2, 0.1, 1.0]])
+    rest = bones.rest_frames(parents, pos)
+    g = bm.tube_arrays(pos, parents, rest, np.full(5, 0.1), np.full(5, 0.05), 16, curliness=curliness, seed=4)
+    up, north = np.array([0, 0, 1.0]), np.array([0, 1.0, 0])
+    for b in range(5):
+        t = pos[b + 1] - pos[parents[b + 1]]
+        t /= np.linalg.norm(t)
+        a = up - (t @ up) * t
+        want = north - (t @ north) * t if np.linalg.norm(a) < 0.2 else a
+        la = np.linalg.norm(a)
+        # a level branch's top and a vertical trunk's north exactly; a limb at 45° its top within the
+        # north blend; a steep twig's side in its upper half; a curly tube's each within its bend
+        bound = 0.9999 if la > 0.999 or la < 1e-9 else 0.97 if la > 0.5 else 0.0
+        if curliness:
+            bound = min(bound, 0.9)
+        for j in range(g["rings"]):
+            cos = _upper_side(g, b, j) @ want / np.linalg.norm(want)
+            assert cos > bound, (b, j, cos)
 
 
 def test_bad_mesh_settings_are_input_errors(tree):

@@ -57,10 +57,11 @@ def test_offsets_follow_the_formula_on_a_hand_fork():
     along = np.einsum("bkso,bkso->bks", o, radial)
     across = np.linalg.norm(o - along[..., None] * radial, axis=-1)
     assert across.max() < 1e-12                                               # radial only
-    # the expected offset: bilinear between the two texels either side of u = k/S (x = u·W − ½); the
-    # low-pass keeps a pure sine's phase and the peak-to-peak scaling undoes its gain
+    # the expected offset: bilinear between the two texels either side of u = k/S + u0 (x = u·W − ½,
+    # u0 the tube's upper side, branch_mesh.up_offsets); the low-pass keeps a pure sine's phase and
+    # the peak-to-peak scaling undoes its gain
     k = np.arange(S)
-    x = k / S * W - 0.5
+    x = (k / S + g["u0"][..., None]) * W - 0.5
     x0 = np.floor(x).astype(int)
     fx = x - x0
     hk = (1 - fx) * col[x0 % W] + fx * col[(x0 + 1) % W]
@@ -119,10 +120,10 @@ def test_relief_on_a_tree(truth, forks):
     # the moves follow the height, low-passed to the vertex spacing (the mesh's band): correlation
     # on the trunk's middle rings; against the raw map it is lower (the cells the mesh cannot carry)
     raw = relief_height("rough")
-    v = _ring_v(truth, rest, forks)
+    u0, v = _ring_uv(truth, rest, forks)
     H, W = raw.shape
     band = mesh_band(raw, BAND * W / S, BAND * H * np.median(np.diff(v, axis=1)))
-    uv = np.stack([np.broadcast_to(np.arange(S) / S, (K, S))[mid].ravel(), v[0][mid].repeat(S)], axis=1)
+    uv = np.stack([(np.arange(S) / S + u0[0][:, None])[mid].ravel(), v[0][mid].repeat(S)], axis=1)
     corr = np.corrcoef(sample_periodic(band, uv), along[0, mid].ravel())[0, 1]
     corr_raw = np.corrcoef(sample_periodic(raw, uv), along[0, mid].ravel())[0, 1]
     print(f"{forks}: trunk moves vs the mesh band of the height: correlation {corr:.4f} (raw map {corr_raw:.3f})")
@@ -132,15 +133,15 @@ def test_relief_on_a_tree(truth, forks):
     assert np.abs(along[thin]).max() < 0.5 * np.abs(along[0]).max()
 
 
-def _ring_v(tree, rest, forks):
-    """The rings' ``v (B, K)`` as the relief mesh is built (the same pipe radii)."""
+def _ring_uv(tree, rest, forks):
+    """The rings' ``(u0 (B, K), v (B, K))`` as the relief mesh is built (the same pipe radii)."""
     from tree_from_video.core.detail.forks import pipe_heads
     r_head, r_tail = bm.branch_radii(tree.parents, tree.radius)
     delta = pipe_exponent(tree)
     r_head = pipe_heads(tree.parents, r_head, r_tail, delta)
     g = bm.tube_arrays(tree.nodes3d[0], tree.parents, rest, r_head, r_tail, RELIEF_SIDES, curliness=0.3,
                        bark="rough", rings=RELIEF_RINGS, forks=forks, pipe_exponent=delta)
-    return g["v"]
+    return g["u0"], g["v"]
 
 
 def test_photo_tiles_repeat_round_the_tube(truth):

@@ -33,6 +33,14 @@ moss and lichen found in the photo by colour and exposed as controls. Pure numpy
    crevices), painted its median colour shaded by the bark's own luminance; cover then ≈ k × the
    photographed cover.
 
+7. **Moss on the branches' upper side**: the branch mesh's UVs put every tube's upper side at
+   ``u ≡`` :data:`.branch_mesh.U_UP` (a vertical trunk's north side), so :func:`uv_square` moves the
+   tile's moss there over the whole UV square: of its texels the ``n`` (the tile's moss cover) with
+   the highest ``up(u) + 0.5 (1 − h) + 0.8 e^(−d/ρ)`` carry moss, ``up(u) = ½ (1 + cos 2π(u − U_UP))``,
+   ``d`` the distance to the photographed moss, ``ρ`` a sixteenth of a tile (patches grow from the
+   photographed ones, crevices first, on top). Moss left below is painted out (the tile's moss
+   inpainted away), moss added is painted as in 6. It is in the texture, so every format carries it.
+
 :func:`bark_maps` is the whole of it; :class:`BarkMaps` what it gives (a
 :class:`.bark_texture.BarkTextures` for the writers, and what was measured).
 """
@@ -79,7 +87,8 @@ class BarkMaps:
     ``height`` in [0, 1]), ``roughness (S, S)`` in [0, 1]; ``moss`` / ``lichen`` cover (share of
     the tile's texels) as photographed (measured on the photos) and in the tile (after the controls);
     ``scale_cm`` the tile's side on the tree; ``neighbour_diff`` the photos' mean colour difference
-    of neighbouring pixels (0–255, the yardstick of a seam, :func:`neighbour_difference`)."""
+    of neighbouring pixels (0–255, the yardstick of a seam, :func:`neighbour_difference`);
+    ``moss_mask (S, S)`` bool the tile's moss (None: none known, :func:`uv_square` leaves the tile as it is)."""
 
     textures: BarkTextures
     roughness: np.ndarray
@@ -87,6 +96,7 @@ class BarkMaps:
     lichen: tuple[float, float]
     scale_cm: float
     neighbour_diff: float
+    moss_mask: np.ndarray | None = None
 
 
 def read_bark_photo(path: str) -> np.ndarray:
@@ -270,9 +280,6 @@ def scale_cover(albedo: np.ndarray, height: np.ndarray, mask: np.ndarray, k: flo
         # part put back
         bare = cv2.inpaint(out, cv2.dilate(mask.astype(np.uint8), np.ones((3, 3), np.uint8)), 5, cv2.INPAINT_TELEA)
         return np.where(new[..., None], out, bare), new
-    colour = np.median(albedo[mask].astype(np.float32), axis=0)
-    lum = albedo.astype(np.float32) @ np.array([0.114, 0.587, 0.299], np.float32)
-    shade = lum / max(float(np.median(lum[~mask])) if (~mask).any() else 1.0, 1.0)
     outside = cv2.distanceTransform((~mask).astype(np.uint8), cv2.DIST_L2, 3)
     cost = outside / max(float(outside.max()), 1.0) + 0.5 * height            # near first, crevices first
     free = ~mask & ~others
@@ -282,8 +289,18 @@ def scale_cover(albedo: np.ndarray, height: np.ndarray, mask: np.ndarray, k: flo
     grow[order] = True
     add = np.zeros_like(mask)
     add[free] = grow
-    out[add] = np.clip(colour[None, :] * np.clip(shade[add], 0.6, 1.4)[:, None], 0, 255).astype(np.uint8)
+    out[add] = cover_paint(albedo, mask, albedo, add)
     return out, mask | add
+
+
+def cover_paint(albedo: np.ndarray, mask: np.ndarray, bark: np.ndarray, add: np.ndarray) -> np.ndarray:
+    """``(A, 3)`` uint8: the ``add`` texels of new cover, the median colour of ``albedo``'s
+    ``mask`` shaded by the luminance of ``bark`` (``(H, W, 3)`` uint8, the bark under them) over
+    its median outside ``mask``, the shade within [0.6, 1.4] (module docstring, 6.)."""
+    colour = np.median(albedo[mask].astype(np.float32), axis=0)
+    lum = bark.astype(np.float32) @ np.array([0.114, 0.587, 0.299], np.float32)
+    shade = lum / max(float(np.median(lum[~mask])) if (~mask).any() else 1.0, 1.0)
+    return np.clip(colour[None, :] * np.clip(shade[add], 0.6, 1.4)[:, None], 0, 255).astype(np.uint8)
 
 
 def normal_map(height: np.ndarray, strength: float) -> np.ndarray:
@@ -357,7 +374,7 @@ def bark_maps(photos: list[np.ndarray], params: BarkPhotoParams | None = None,
     normal = normal_map(height, p.relief_cm / p.scale_cm * S)
     return BarkMaps(BarkTextures(cv2.cvtColor(albedo, cv2.COLOR_BGR2RGB), normal, height), roughness,
                     (moss0 / covers, float(moss.mean())), (lichen0 / covers, float(lichen.mean())), p.scale_cm,
-                    float(np.median([neighbour_difference(img) for img in photos])))
+                    float(np.median([neighbour_difference(img) for img in photos])), moss)
 
 
 def uv_repeats(trunk_radius_m: float, scale_cm: float) -> int:
@@ -370,7 +387,8 @@ def uv_square(maps: BarkMaps, trunk_radius_m: float, max_px: int = 2048) -> tupl
     """``(albedo (P, P, 3) uint8 sRGB, normal (P, P, 3) uint8, roughness (P, P) float, repeats)``:
     the tile repeated ``repeats`` × ``repeats`` times (:func:`uv_repeats`) over the branch mesh's
     UV square, at most ``max_px`` on a side, so the bark is ``scale_cm`` a tile on the trunk in every
-    format (no texture transform: FBX has none)."""
+    format (no texture transform: FBX has none); its moss moved to the branches' upper side
+    (:func:`moss_on_top`)."""
     k = uv_repeats(trunk_radius_m, maps.scale_cm)
     t = maps.textures
     S = t.albedo.shape[0]
@@ -381,17 +399,55 @@ def uv_square(maps: BarkMaps, trunk_radius_m: float, max_px: int = 2048) -> tupl
         return big if big.shape[0] == P else cv2.resize(big, (P, P), interpolation=interp)
     normal = tiled(t.normal, cv2.INTER_AREA).astype(np.float32) / 127.5 - 1.0
     normal /= np.maximum(np.linalg.norm(normal, axis=-1, keepdims=True), 1e-6)   # unit again after the average
-    return (tiled(t.albedo, cv2.INTER_AREA), np.clip(np.rint((normal + 1.0) * 127.5), 0, 255).astype(np.uint8),
-            tiled(maps.roughness.astype(np.float32), cv2.INTER_AREA), k)
+    albedo, rough = tiled(t.albedo, cv2.INTER_AREA), tiled(maps.roughness.astype(np.float32), cv2.INTER_AREA)
+    if maps.moss_mask is not None and maps.moss_mask.any():
+        mask = maps.moss_mask.astype(bool)
+        bare = cv2.inpaint(t.albedo, cv2.dilate(mask.astype(np.uint8), np.ones((3, 3), np.uint8)), 5,
+                           cv2.INPAINT_TELEA)
+        albedo, top = moss_on_top(albedo, tiled(bare, cv2.INTER_AREA),
+                                  tiled(mask.astype(np.float32), cv2.INTER_AREA) > 0.5,
+                                  tiled(t.height.astype(np.float32), cv2.INTER_AREA), P / (16.0 * k))
+        rough = np.where(top, 0.9, 0.6 + 0.35 * (1.0 - tiled(t.height.astype(np.float32), cv2.INTER_AREA)))
+    return albedo, np.clip(np.rint((normal + 1.0) * 127.5), 0, 255).astype(np.uint8), rough.astype(np.float32), k
+
+
+def up_weight(width: int) -> np.ndarray:
+    """``(W,)`` ``up(u) = ½ (1 + cos 2π(u − U_UP))`` at the texel centres ``u = (c + ½) / W`` of a
+    UV square ``width`` texels wide: 1 on the branches' upper side, 0 underneath."""
+    from .branch_mesh import U_UP
+    u = (np.arange(width) + 0.5) / width
+    return 0.5 * (1.0 + np.cos(2.0 * np.pi * (u - U_UP)))
+
+
+def moss_on_top(albedo: np.ndarray, bare: np.ndarray, moss: np.ndarray, height: np.ndarray,
+                rho: float) -> tuple[np.ndarray, np.ndarray]:
+    """``(albedo, moss)`` of the UV square with ``moss``'s cover moved to the upper side (module
+    docstring, 7.): ``albedo``, ``bare`` (the same without moss) ``(P, P, 3)`` uint8, ``moss (P, P)``
+    bool, ``height (P, P)`` in [0, 1], ``rho`` texels (the reach of a photographed patch)."""
+    n = int(moss.sum())
+    d = cv2.distanceTransform((~moss).astype(np.uint8), cv2.DIST_L2, 3)
+    score = up_weight(moss.shape[1])[None, :] + 0.5 * (1.0 - height) + 0.8 * np.exp(-d / max(rho, 1.0))
+    flat = score.ravel()
+    top = np.zeros(flat.size, bool)
+    if n:
+        top[np.argpartition(-flat, n - 1)[:n]] = True
+    top = top.reshape(moss.shape)
+    out = np.where(moss[..., None], bare, albedo)                   # the moss that is not kept painted out
+    keep = top & moss
+    out[keep] = albedo[keep]
+    add = top & ~moss
+    out[add] = cover_paint(albedo, moss, bare, add)
+    return out, top
 
 
 #: the files :func:`write_bark_files` writes
-BARK_FILES = ("bark_albedo.png", "bark_normal.png", "bark_roughness.png", "bark_height.png", "bark.json")
+BARK_FILES = ("bark_albedo.png", "bark_normal.png", "bark_roughness.png", "bark_height.png", "bark_moss.png",
+              "bark.json")
 
 
 def write_bark_files(maps: BarkMaps, folder: str, photos: list[str]) -> list[str]:
     """The tile's maps as files in ``folder`` (:data:`BARK_FILES`: albedo sRGB, normal, roughness
-    8-bit, height 16-bit PNG, and ``bark.json``: the photos, the tile's scale, the covers), each
+    8-bit, height 16-bit PNG, the moss mask 8-bit (255 moss), and ``bark.json``: the photos, the tile's scale, the covers), each
     written atomically; returns their paths."""
     import json
 
@@ -407,6 +463,8 @@ def write_bark_files(maps: BarkMaps, folder: str, photos: list[str]) -> list[str
             "bark_normal.png": png(cv2.cvtColor(t.normal, cv2.COLOR_RGB2BGR)),
             "bark_roughness.png": png(np.clip(np.rint(maps.roughness * 255), 0, 255).astype(np.uint8)),
             "bark_height.png": png(np.clip(np.rint(t.height * 65535), 0, 65535).astype(np.uint16)),
+            "bark_moss.png": png((maps.moss_mask if maps.moss_mask is not None
+                                  else np.zeros(t.height.shape, bool)).astype(np.uint8) * 255),
             "bark.json": json.dumps({"photos": [str(p) for p in photos], "tile_cm": maps.scale_cm,
                                      "tile_px": int(t.albedo.shape[0]),
                                      "moss_cover": {"photographed": maps.moss[0], "tile": maps.moss[1]},
@@ -437,6 +495,8 @@ def read_bark_files(folder: str) -> BarkMaps:
     normal = cv2.cvtColor(img("bark_normal.png", cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)
     rough = img("bark_roughness.png", cv2.IMREAD_GRAYSCALE).astype(np.float64) / 255.0
     height = img("bark_height.png", cv2.IMREAD_UNCHANGED).astype(np.float64) / 65535.0
+    moss_path = os.path.join(folder, "bark_moss.png")           # absent in a species written before it
+    moss_mask = img("bark_moss.png", cv2.IMREAD_GRAYSCALE) > 127 if os.path.isfile(moss_path) else None
     doc = read_json(os.path.join(folder, "bark.json"), f"bark.json in '{folder}'", "write the bark again")
     try:
         moss = (float(doc["moss_cover"]["photographed"]), float(doc["moss_cover"]["tile"]))
@@ -444,4 +504,4 @@ def read_bark_files(folder: str) -> BarkMaps:
         scale = float(doc["tile_cm"])
     except (KeyError, TypeError, ValueError):
         raise InputError(f"bark.json in '{folder}' is incomplete; write the bark again") from None
-    return BarkMaps(BarkTextures(albedo, normal, height), rough, moss, lichen, scale, 0.0)
+    return BarkMaps(BarkTextures(albedo, normal, height), rough, moss, lichen, scale, 0.0, moss_mask)

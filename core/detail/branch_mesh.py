@@ -14,9 +14,12 @@ One closed tube per bone, ``K`` rings of ``S`` vertices each, capped at both end
   ``b_i`` from :data:`details.BARK_PRESETS` ("smooth": Σ b ≤ 0.5 %, "rough": 1–5 % of r0).
   The phases drift with the arc length (the ridges wind slowly and continue from a branch into
   the child that continues it).
-* **UVs**: ``u`` around (0..1, a seam at θ = 0), ``v`` = arc length of the centre line from the
+* **UVs**: ``u`` around (one unit a turn, a seam at θ = 0), ``v`` = arc length of the centre line from the
   trunk base ÷ the thickest tube's circumference (square texels on the trunk): continuous along a
-  branch (``v`` at a child's head equals ``v`` at its parent's tail).
+  branch (``v`` at a child's head equals ``v`` at its parent's tail). Each ring's ``u`` starts at
+  ``u0`` (:func:`up_offsets`) so that ``u ≡`` :data:`U_UP` (mod 1) on the tube's upper side: the bark
+  texture's band there (the moss of :func:`.bark_photo.uv_square`) lies on top of every branch in
+  every format, with no per-vertex data.
 * **Weights**: every ring belongs to its bone with weight 1 (``vert_bone``).
 
 With ``curliness = 0`` and ``bark = "none"`` the default is 2 rings per bone: the straight tapered
@@ -37,6 +40,12 @@ from .shapes import BARK_PRESETS, minimum_jerk, random_bark
 
 #: the largest lateral offset of a curly tube at curliness 1, share of its bone's length
 CURL_SHARE = 0.12
+#: the ``u`` (mod 1) of every ring's upper side (:func:`up_offsets`)
+U_UP = 0.5
+#: world up and the side a vertical trunk's ``U_UP`` faces: +Y, Blender's north (the Sun Position
+#: add-on's North at offset 0), the shaded side where moss grows on a trunk in the northern hemisphere
+UP_AXIS = np.array([0.0, 0.0, 1.0])
+NORTH_AXIS = np.array([0.0, 1.0, 0.0])
 #: rings per bone when curly (``rings = 0``)
 CURLY_RINGS = 6
 #: bark phase drift, radians per unit of v (one texture tile), at most
@@ -160,6 +169,29 @@ def _frames(head: np.ndarray, seg: np.ndarray, offset: np.ndarray, rest: np.ndar
     return centre, tangent, rx, rz
 
 
+def up_offsets(chord: np.ndarray, rx: np.ndarray, rz: np.ndarray) -> np.ndarray:
+    """``u0 (B, K)``: the ``u`` at θ = 0 of each tube's rings such that the tube's upper side is at
+    ``u ≡`` :data:`U_UP`; one value per tube (a tube's bark never twists along it).
+
+    The tube's reference side is ``a + (1 − |a|)² n``: ``a`` world up minus its part along the
+    bone's unit ``chord (B, 3)`` (head to tail), ``n`` the same of :data:`NORTH_AXIS` (a vertical
+    trunk has no upper side and takes north; a level branch takes up; in between they blend). Its
+    angle in each ring (``φ = atan2(ref · rz, ref · rx)``, ring vertex ``k`` at θ_k = 2πk/S;
+    ``rx``, ``rz`` ``(B, K, 3)``), averaged over the tube's rings on the circle, gives
+    ``u0 = U_UP − φ / 2π`` in [0, 1). The blend has a zero (a direction on the sphere with no
+    reference side: any tangent field has one), a bone leaning ~22° from vertical toward the north;
+    a tube there takes an arbitrary but untwisted ``u0``."""
+    t = np.asarray(chord, np.float64)
+    a = UP_AXIS - (t @ UP_AXIS)[:, None] * t
+    n = NORTH_AXIS - (t @ NORTH_AXIS)[:, None] * t
+    w = (1.0 - np.minimum(np.linalg.norm(a, axis=-1), 1.0)) ** 2
+    ref = (a + w[:, None] * n)[:, None]
+    phi = np.arctan2(np.sum(ref * rz, axis=-1), np.sum(ref * rx, axis=-1))        # (B, K)
+    mean = np.arctan2(np.sin(phi).sum(axis=1), np.cos(phi).sum(axis=1))
+    u0 = np.mod(U_UP - mean / (2.0 * math.pi), 1.0)
+    return np.broadcast_to(u0[:, None], phi.shape).copy()
+
+
 def tube_arrays(rest_pos: np.ndarray, parents: np.ndarray, rest: np.ndarray, r_head: np.ndarray,
                 r_tail: np.ndarray, sides: int = 8, *, curliness: float = 0.0, bark: str = "none",
                 rings: int = 0, seed: int = 0, forks: str = "overlap", pipe_exponent: float = 2.0) -> dict:
@@ -177,10 +209,11 @@ def tube_arrays(rest_pos: np.ndarray, parents: np.ndarray, rest: np.ndarray, r_h
     Returns arrays: ``co (V, 3)``; ``loop_vert (L,)``; ``loop_start``, ``loop_total``, ``smooth (P,)``;
     ``uv (L, 2)``; ``vert_bone (V,)``; per ring ``centre (B, K, 3)``, ``tangent (B, K, 3)`` (unit),
     ``r0 (B, K)`` (radius before bark), ``tau (B, K)`` (position along the bone: 0 head, 1 tail,
-    < 0 in the extension), ``v (B, K)``; ``bark`` = :func:`bark_terms`; ``tile`` (metres per unit
-    of v); ``plan`` the :class:`~core.detail.forks.ForkPlan` (joined only). ``V = K·S·B``; ring ``j``
-    of bone ``b`` is vertices ``(b·K + j)·S … + S − 1``, vertex ``k`` at angle ``θ_k = 2πk/S`` from the
-    ring's X. Overlapping: ``P = ((K − 1)·S + 2)·B``, ``L = (4(K − 1) + 2)·S·B``, polygons contiguous
+    < 0 in the extension), ``v (B, K)``, ``u0 (B, K)`` (:func:`up_offsets`); ``bark`` =
+    :func:`bark_terms`; ``tile`` (metres per unit of v); ``plan`` the
+    :class:`~core.detail.forks.ForkPlan` (joined only). ``V = K·S·B``; ring ``j`` of bone ``b`` is
+    vertices ``(b·K + j)·S … + S − 1``, vertex ``k`` at angle ``θ_k = 2πk/S`` from the ring's X.
+    Overlapping: ``P = ((K − 1)·S + 2)·B``, ``L = (4(K − 1) + 2)·S·B``, polygons contiguous
     per bone."""
     p = MeshParams(int(sides), float(curliness), bark, int(rings), int(seed), forks)
     check_params(p)
@@ -265,10 +298,11 @@ def tube_arrays(rest_pos: np.ndarray, parents: np.ndarray, rest: np.ndarray, r_h
 
     u_side = np.tile(np.stack([k, k, k + 1, k + 1], axis=1).ravel() / S, K - 1)         # (4S(K−1),)
     ring_of_loop = np.broadcast_to(j[:, :, None] + np.array([0, 1, 1, 0]), (K - 1, S, 4)).reshape(-1)
+    u0 = up_offsets(seg / np.maximum(length, 1e-12)[:, None], rx, rz)                                                    # (B, K)
     u_cap = 0.5 + np.cos(theta) / (2 * math.pi)
     uv = np.empty((B, n_loops, 2))
     ns = 4 * S * (K - 1)
-    uv[:, :ns, 0] = u_side
+    uv[:, :ns, 0] = u_side[None] + u0[:, ring_of_loop]
     uv[:, :ns, 1] = v[:, ring_of_loop]
     uv[:, ns:ns + S, 0] = u_cap
     uv[:, ns:ns + S, 1] = v[:, :1] + (r0[:, :1] / tile) * np.sin(theta)[None]
@@ -277,7 +311,7 @@ def tube_arrays(rest_pos: np.ndarray, parents: np.ndarray, rest: np.ndarray, r_h
     out = {"co": co.reshape(-1, 3), "loop_vert": loop_vert, "loop_start": loop_start,
            "loop_total": loop_total, "smooth": smooth, "uv": uv.reshape(-1, 2),
            "vert_bone": np.repeat(np.arange(B), K * S), "centre": centre, "tangent": tangent,
-           "r0": r0, "tau": tau, "v": v, "bark": (amp, freqs, phases, drift), "tile": tile,
+           "r0": r0, "tau": tau, "v": v, "u0": u0, "bark": (amp, freqs, phases, drift), "tile": tile,
            "rings": K, "sides": S, "plan": plan}
     if plan is not None:
         out.update(joined_polygons(out, plan, K, S, v))
@@ -287,8 +321,8 @@ def tube_arrays(rest_pos: np.ndarray, parents: np.ndarray, rest: np.ndarray, r_h
 def joined_polygons(g: dict, plan, K: int, S: int, v: np.ndarray) -> dict:
     """The polygons of joined tubes: each bone's side quads, the caps only where a tube ends
     unjoined (the root's foot, the tips, a fork left overlapping), then the junctions' triangles and
-    the bends' quads (smooth; their loops' UVs the rings' own ``(k/S, v)``, a face across the seam
-    taking ``u + 1`` on its low side)."""
+    the bends' quads (smooth; their loops' UVs the rings' own ``(k/S + u0, v)``, moved by whole
+    turns to one piece of the texture per face)."""
     n_loops = (4 * (K - 1) + 2) * S
     totals = np.concatenate([np.full((K - 1) * S, 4), [S, S]])
     B = len(plan.head_cap)
@@ -303,17 +337,15 @@ def joined_polygons(g: dict, plan, K: int, S: int, v: np.ndarray) -> dict:
     loop_total = np.concatenate([g["loop_total"][keep_poly], np.full(len(tris), 3), np.full(len(quads), 4)])
     loop_start = np.concatenate([[0], np.cumsum(loop_total)[:-1]])
     smooth = np.concatenate([g["smooth"][keep_poly], np.ones(len(tris) + len(quads), bool)])
-    # the extra faces' UVs: (k / S, v of the vertex's ring), unwrapped across the seam per face
+    # the extra faces' UVs: (k / S + u0 of the vertex's ring, v of its ring), each vertex's u moved by
+    # whole turns to within half a turn of its face's first vertex (a face across the seam, or between
+    # rings whose u0 differ, stays one piece of the texture)
     kk = extra % S
     ring = extra // S                                                  # b·K + j
-    u = kk / S
+    u = kk / S + g["u0"].reshape(-1)[ring]
     face = np.concatenate([np.repeat(np.arange(len(tris)), 3), len(tris) + np.repeat(np.arange(len(quads)), 4)])
-    hi = np.zeros(len(tris) + len(quads))
-    np.maximum.at(hi, face, u)
-    lo = np.full(len(tris) + len(quads), np.inf)
-    np.minimum.at(lo, face, u)
-    wrap = (hi - lo) > 0.5
-    u = np.where(wrap[face] & (u < 0.5), u + 1.0, u)
+    first = np.concatenate([np.arange(len(tris)) * 3, 3 * len(tris) + np.arange(len(quads)) * 4])
+    u = u + np.round(u[first][face] - u)
     uv_extra = np.stack([u, v.reshape(-1)[ring]], axis=1)
     uv = np.concatenate([g["uv"].reshape(B, n_loops, 2).reshape(-1, 2)[loop_keep], uv_extra])
     return {"loop_vert": loop_vert, "loop_start": loop_start, "loop_total": loop_total, "smooth": smooth,

@@ -4,7 +4,7 @@ the mesh (and in every export of it), not only in the shading.
 
 The height map is the one the bark material shows: the photo's tile (:mod:`.bark_photo`, repeated
 :func:`~.bark_photo.uv_repeats` times over the UV square) or the procedural bark's
-(:func:`~.bark_texture.bark_textures`). It is sampled at each vertex's UV (``u = k/S`` round the
+(:func:`~.bark_texture.bark_textures`). It is sampled at each vertex's UV (``u = k/S + u0`` round the
 tube, ``v`` its ring's), bilinear and periodic, from the map low-passed to what the vertices can
 carry (:func:`mesh_band`: a Gaussian of :data:`BAND` vertex spacings, so the furrows are in the mesh and
 the finer cells stay in the normal map instead of aliasing into noise), then centred and scaled to
@@ -69,7 +69,7 @@ def relief_offsets(g: dict, height: np.ndarray, repeats: int, relief_m: float) -
     co = np.asarray(g["co"], np.float64).reshape(B, K, S, 3)
     radial = co - g["centre"][:, :, None]
     radial /= np.maximum(np.linalg.norm(radial, axis=-1, keepdims=True), 1e-12)
-    u = np.broadcast_to(np.arange(S) / S, (B, K, S))
+    u = np.arange(S)[None, None] / S + np.asarray(g["u0"], np.float64)[..., None]
     v = np.broadcast_to(g["v"][..., None], (B, K, S))
     h = sample_periodic(height, np.stack([u.ravel(), v.ravel()], axis=1), repeats)
     span = max(float(np.ptp(height)), 1e-9)
