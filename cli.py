@@ -26,7 +26,14 @@ from types import SimpleNamespace
 from . import __version__
 from .core import jobs, pipeline
 from .core.asset.game import ENGINES, GameSettings
-from .core.detail.bark_photo import BarkPhotoParams, bark_maps, read_bark_files, read_bark_photo, write_bark_files
+from .core.detail.bark_photo import (
+    BarkPhotoParams,
+    bark_maps,
+    bark_photo_files,
+    read_bark_files,
+    read_bark_photo,
+    write_bark_files,
+)
 from .core.detail.branch_mesh import MeshParams
 from .core.detail.leaf_clusters import LeafParams
 from .core.detail.relief import RELIEF_RINGS, RELIEF_SIDES
@@ -158,10 +165,11 @@ def build_parser() -> argparse.ArgumentParser:
                         f"sides and {RELIEF_RINGS} rings a bone, LOD1+ keep none")
     B = BarkPhotoParams
     p.add_argument("--bark-image", action="append", metavar="PHOTO",
-                   help="a close-up photo of the bark (repeat for several): the bark becomes a seamless tile "
-                        "quilted from it (albedo, height, normal and roughness maps, DIR/bark_*.png), in the "
-                        "Blender outputs and every export, instead of the procedural bark; 'video': the "
-                        "reconstructed trunk's own pixels in frame 1")
+                   help="a close-up photo of the bark, or a folder of them (repeat for several): the bark "
+                        "becomes a seamless tile quilted from it (albedo, height, normal and roughness maps, "
+                        "DIR/bark_*.png), in the Blender outputs and every export, instead of the procedural "
+                        "bark; photos of the same bark a step apart give its height by their parallax; "
+                        "'video': the reconstructed trunk's own pixels in frame 1")
     p.add_argument("--moss", type=float, default=None,
                    help=f"moss found in the bark photo (green), {_range(B, 'moss')}: 0 removes it, 1 as "
                         f"photographed, 2 doubles its cover, crevices first (default {_default(B, 'moss'):g})")
@@ -584,9 +592,7 @@ def _read_bark(run: Run) -> list:
     for path in run.job.outputs.bark_images:
         if path == VIDEO_BARK:                    # the trunk's own pixels, once frame 1 is traced
             continue
-        if not os.path.isfile(path):
-            raise InputError(f"bark photo '{path}' does not exist; give a close-up photo of the bark")
-        photos.append(read_bark_photo(path))
+        photos.extend(read_bark_photo(f) for f in bark_photo_files(path))
     return photos
 
 

@@ -2,10 +2,12 @@
 normals of the right scale, moss and lichen found by colour and their cover under the controls;
 bad photos refused with one line. The photos are synthetic close-ups (tests/bark_photos.py) with a
 light gradient, noise and JPEG; seeds 3 and 11 were never looked at while writing the module."""
+import json
+
 import cv2
 import numpy as np
 import pytest
-from bark_photos import bark_photo
+from bark_photos import bark_pair, bark_photo
 
 from tree_from_video.core.detail import bark_photo as bp
 from tree_from_video.core.errors import InputError
@@ -138,3 +140,57 @@ def test_the_uv_square_puts_the_moss_on_the_branches_upper_side():
         assert seen.mean() == pytest.approx(maps.moss[1], rel=0.25)
         assert top >= 5.0 * bottom and top > 2.0 * seen.mean()
         assert rough[seen].mean() > 0.88                                          # moss's roughness where it went
+
+
+def _high_pass(h, sigma):
+    return h - cv2.GaussianBlur(h.astype(np.float32), (0, 0), sigma)
+
+
+@pytest.mark.parametrize("seed,move", [(31, (4.0, 1.2, -0.5)), (32, (-3.0, -2.0, -4.0)), (33, (1.5, 0.0, 0.0))])
+def test_two_photos_of_the_same_bark_give_its_height_by_parallax(seed, move):
+    """Two hand-held shots of one patch of bark (tests/bark_photos.bark_pair: colour blotches of its
+    own, a grazing light), the second moved by ``move`` cm: where the two see the same bark (≥ 60 %
+    of each), each photo's height correlates ≥ 0.8 with the true relief (high-passed as the method
+    does), where its shading gives ≤ 0.2."""
+    a, b, ha, hb = bark_pair(seed, move=move)
+    sigma = (SMALL.step + SMALL.overlap) / 2.0
+    heights, said = bp.photo_heights([a, b], sigma)
+    shading = [bp.shading_height(bp.even_light(img), sigma) for img in (a, b)]
+    inner = (slice(24, -24), slice(24, -24))
+    for k, truth in enumerate((ha, hb)):
+        both = (heights[k] != shading[k])[inner]                       # where the height came from parallax
+        t = _high_pass(truth, sigma)[inner][both]
+        got = np.corrcoef(heights[k][inner][both], t)[0, 1]
+        shade = np.corrcoef(shading[k][inner][both], t)[0, 1]
+        print(f"\nseed {seed}, photo {k + 1} ({said[k]}): height vs the true relief {got:.3f} on "
+              f"{100 * both.mean():.0f} % of it, shading's {shade:.3f}")
+        assert said[k].startswith(f"stereo with photo {2 - k}") and both.mean() >= 0.6
+        assert got >= 0.8 and shade <= 0.2
+
+
+def test_photos_of_different_bark_keep_their_shading_height():
+    a, b = bark_pair(34)[0], bark_pair(35)[0]
+    sigma = (SMALL.step + SMALL.overlap) / 2.0
+    heights, said = bp.photo_heights([a, b], sigma)
+    assert said == ("shading", "shading")
+    np.testing.assert_array_equal(heights[1], bp.shading_height(bp.even_light(b), sigma))
+
+
+def test_bark_json_says_where_each_photos_height_came_from(tmp_path):
+    a, b, _, _ = bark_pair(36, move=(-2.5, 1.0, 0.0))
+    c = bark_photo(36)[0]                                    # a close-up of another bark
+    maps = bp.bark_maps([a, b, c], SMALL)
+    assert [s.split(":")[0] for s in maps.height_from] == ["stereo with photo 2", "stereo with photo 1", "shading"]
+    bp.write_bark_files(maps, str(tmp_path), ["a.jpg", "b.jpg", "c.jpg"])
+    assert json.loads((tmp_path / "bark.json").read_text())["height_from"] == list(maps.height_from)
+
+
+def test_a_folder_of_bark_photos_is_its_images(tmp_path):
+    for name in ("b.jpg", "a.PNG", "notes.txt"):
+        (tmp_path / name).write_bytes(b"x")
+    assert bp.bark_photo_files(str(tmp_path)) == [str(tmp_path / "a.PNG"), str(tmp_path / "b.jpg")]
+    assert bp.bark_photo_files(str(tmp_path / "b.jpg")) == [str(tmp_path / "b.jpg")]
+    (tmp_path / "empty").mkdir()
+    for bad, needle in ((tmp_path / "empty", "holds no photo"), (tmp_path / "gone", "does not exist")):
+        with pytest.raises(InputError, match=needle):
+            bp.bark_photo_files(str(bad))

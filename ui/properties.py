@@ -276,9 +276,11 @@ class TreeVideoSettings(bpy.types.PropertyGroup):
                                                      f"(0: none; the tubes get at least {RELIEF_SIDES} sides and "
                                                      f"{RELIEF_RINGS} rings)")
     bark_image: bpy.props.StringProperty(name="Bark Image", subtype="FILE_PATH", **_blend_relative(),
-                                         description="A close-up photo of the bark: the bark becomes a seamless "
-                                                     "tile quilted from it (colour, relief, roughness) instead of the "
-                                                     "procedural one, in every export (empty: procedural)")
+                                         description="A close-up photo of the bark, or a folder of them: the bark "
+                                                     "becomes a seamless tile quilted from it (colour, relief, "
+                                                     "roughness) instead of the procedural one, in every export; "
+                                                     "photos of the same bark a step apart give its relief by "
+                                                     "parallax (empty: procedural)")
     bark_moss: bpy.props.FloatProperty(name="Moss", **_core("bark_moss"), subtype="FACTOR",
                                        description="Moss found in the bark photo (green): 0 removes it, 1 as "
                                                    "photographed, 2 doubles its cover, crevices first")

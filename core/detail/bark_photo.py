@@ -11,6 +11,9 @@ moss and lichen found in the photo by colour and exposed as controls. Pure numpy
 2. **Height** from the photo's shading (one view has no photogrammetry): the luminance high-passed
    (minus its blur at σ = half a patch: the shading of furrows and plates, not the light) and
    scaled to [0, 1] between its 1st and 99th percentiles; dark crevices low, lit plates high.
+   **Several photos of the same bark**: a photo that overlaps another (:mod:`.bark_stereo`, the
+   partner with the most matches) takes its height from their parallax where the two see the same
+   bark, the shading's elsewhere; ``BarkMaps.height_from`` says which, per photo.
 3. **Image quilting** (Efros & Freeman 2001) on a torus: square patches of ``step + overlap``
    texels laid every ``step`` texels in raster order, the tile's last row and column overlapping
    its first (indices modulo the tile), so the tile repeats without a seam. Each patch is picked at
@@ -88,7 +91,9 @@ class BarkMaps:
     the tile's texels) as photographed (measured on the photos) and in the tile (after the controls);
     ``scale_cm`` the tile's side on the tree; ``neighbour_diff`` the photos' mean colour difference
     of neighbouring pixels (0–255, the yardstick of a seam, :func:`neighbour_difference`);
-    ``moss_mask (S, S)`` bool the tile's moss (None: none known, :func:`uv_square` leaves the tile as it is)."""
+    ``moss_mask (S, S)`` bool the tile's moss (None: none known, :func:`uv_square` leaves the tile as it is);
+    ``height_from`` per photo where its height came from ("shading", or "stereo with photo k: n
+    matches, v % of it")."""
 
     textures: BarkTextures
     roughness: np.ndarray
@@ -97,6 +102,26 @@ class BarkMaps:
     scale_cm: float
     neighbour_diff: float
     moss_mask: np.ndarray | None = None
+    height_from: tuple[str, ...] = ()
+
+
+#: the image files a folder of bark photos is read for (:func:`bark_photo_files`)
+PHOTO_EXTENSIONS = (".jpg", ".jpeg", ".png", ".tif", ".tiff", ".bmp", ".webp")
+
+
+def bark_photo_files(path: str) -> list[str]:
+    """The photos ``path`` names: itself if a file, every image in it (:data:`PHOTO_EXTENSIONS`, by
+    name) if a folder: several close-ups of the same bark give its height by parallax
+    (:mod:`.bark_stereo`). :class:`InputError` for a path that is neither, or an empty folder."""
+    if os.path.isfile(path):
+        return [path]
+    if not os.path.isdir(path):
+        raise InputError(f"bark photo '{path}' does not exist; give a close-up photo of the bark or a folder of them")
+    files = sorted(os.path.join(path, n) for n in os.listdir(path) if n.lower().endswith(PHOTO_EXTENSIONS))
+    if not files:
+        raise InputError(f"the folder '{path}' holds no photo ({', '.join(PHOTO_EXTENSIONS)}); put the "
+                         "close-ups of the bark in it or give a photo")
+    return files
 
 
 def read_bark_photo(path: str) -> np.ndarray:
@@ -350,10 +375,11 @@ def bark_maps(photos: list[np.ndarray], params: BarkPhotoParams | None = None,
         raise InputError("no bark photo given; give one or more close-ups of the bark")
     rng = np.random.default_rng(p.seed)
     stacks, moss0, lichen0, covers = [], 0, 0, 0
-    for img in photos:
-        img = at_tile_scale(img, p.size)
+    sigma = (p.step + p.overlap) / 2.0
+    shrunk = [at_tile_scale(img, p.size) for img in photos]
+    heights, height_from = photo_heights(shrunk, sigma, progress)
+    for img, height in zip(shrunk, heights):
         lit = even_light(img)
-        height = shading_height(lit, (p.step + p.overlap) / 2.0)
         m, li = moss_lichen(img)
         moss0, lichen0, covers = moss0 + int(m.sum()), lichen0 + int(li.sum()), covers + m.size
         stacks.append(np.dstack([lit, height * 255.0, m * 255.0, li * 255.0]).astype(np.float32))
@@ -374,7 +400,35 @@ def bark_maps(photos: list[np.ndarray], params: BarkPhotoParams | None = None,
     normal = normal_map(height, p.relief_cm / p.scale_cm * S)
     return BarkMaps(BarkTextures(cv2.cvtColor(albedo, cv2.COLOR_BGR2RGB), normal, height), roughness,
                     (moss0 / covers, float(moss.mean())), (lichen0 / covers, float(lichen.mean())), p.scale_cm,
-                    float(np.median([neighbour_difference(img) for img in photos])), moss)
+                    float(np.median([neighbour_difference(img) for img in photos])), moss, height_from)
+
+
+def photo_heights(photos: list[np.ndarray], sigma: float,
+                  progress: ProgressFn | None = None) -> tuple[list[np.ndarray], tuple[str, ...]]:
+    """Each photo's height ``(H, W)`` in [0, 1] (module docstring, 2.): from the parallax against
+    the overlapping photo with the most matches where they see the same bark, else from its shading;
+    and where each came from."""
+    from .bark_stereo import features, stereo_height
+    heights = [shading_height(even_light(img), sigma) for img in photos]
+    if len(photos) < 2:
+        return heights, ("shading",) * len(photos)
+    feats = [features(img) for img in photos]
+    said = []
+    for i, img in enumerate(photos):
+        best = None
+        for j, other in enumerate(photos):
+            if j != i:
+                report(progress, "bark height", (i * len(photos) + j) / len(photos) ** 2)
+                got = stereo_height(img, other, sigma, feats[i], feats[j])
+                if got is not None and (best is None or got[2] > best[1][2]):
+                    best = (j, got)
+        if best is None:
+            said.append("shading")
+            continue
+        j, (h, valid, n) = best
+        heights[i] = np.where(valid, h, heights[i]).astype(np.float32)
+        said.append(f"stereo with photo {j + 1}: {n} matches, {100 * valid.mean():.0f} % of it")
+    return heights, tuple(said)
 
 
 def uv_repeats(trunk_radius_m: float, scale_cm: float) -> int:
@@ -468,7 +522,8 @@ def write_bark_files(maps: BarkMaps, folder: str, photos: list[str]) -> list[str
             "bark.json": json.dumps({"photos": [str(p) for p in photos], "tile_cm": maps.scale_cm,
                                      "tile_px": int(t.albedo.shape[0]),
                                      "moss_cover": {"photographed": maps.moss[0], "tile": maps.moss[1]},
-                                     "lichen_cover": {"photographed": maps.lichen[0], "tile": maps.lichen[1]}},
+                                     "lichen_cover": {"photographed": maps.lichen[0], "tile": maps.lichen[1]},
+                                     "height_from": list(maps.height_from)},
                                     indent=2).encode("utf-8")}
     paths = []
     for name in BARK_FILES:

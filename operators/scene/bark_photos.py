@@ -7,27 +7,29 @@ import os
 
 import bpy
 
-from ...core.detail.bark_photo import BarkMaps, BarkPhotoParams, bark_maps, read_bark_photo
+from ...core.detail.bark_photo import BarkMaps, BarkPhotoParams, bark_maps, bark_photo_files, read_bark_photo
 from ...core.errors import InputError
 
 _CACHE: dict = {}
 
 
 def panel_bark(props) -> BarkMaps | None:
-    """The bark tile of the panel's *Bark Image* with its *Moss*, *Lichen* and *Bark Scale*; None
-    when no image is set; :class:`InputError` (one line) for a missing or unfit photo."""
+    """The bark tile of the panel's *Bark Image* (a photo, or a folder of photos of the bark) with its
+    *Moss*, *Lichen* and *Bark Scale*; None when no image is set; :class:`InputError` (one line) for
+    a missing or unfit photo."""
     path = bpy.path.abspath(props.bark_image.strip()) if props.bark_image.strip() else ""
     if not path:
         return None
-    if not os.path.isfile(path):
-        raise InputError(f"bark image '{props.bark_image}' does not exist; pick a close-up photo of the bark or "
-                         "clear the field for the procedural bark")
+    if not os.path.exists(path):
+        raise InputError(f"bark image '{props.bark_image}' does not exist; pick a close-up photo of the bark (or "
+                         "a folder of them) or clear the field for the procedural bark")
+    files = bark_photo_files(path)
     params = BarkPhotoParams(moss=float(props.bark_moss), lichen=float(props.bark_lichen),
                              scale_cm=float(props.bark_scale))
-    key = (path, os.path.getmtime(path), params.moss, params.lichen, params.scale_cm)
+    key = (tuple((f, os.path.getmtime(f)) for f in files), params.moss, params.lichen, params.scale_cm)
     if key not in _CACHE:
         _CACHE.clear()
-        _CACHE[key] = bark_maps([read_bark_photo(path)], params)
+        _CACHE[key] = bark_maps([read_bark_photo(f) for f in files], params)
     return _CACHE[key]
 
 
