@@ -52,7 +52,7 @@ def _grey(img: np.ndarray) -> np.ndarray:
 def features(img: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
     """``(points (M, 2) px, descriptors (M, 128) or None)``: SIFT of ``img`` (BGR or grey uint8)."""
     kps, desc = cv2.SIFT_create(nfeatures=4000).detectAndCompute(_grey(img), None)
-    return np.float32([k.pt for k in kps]).reshape(-1, 2), desc
+    return np.array([k.pt for k in kps], np.float32).reshape(-1, 2), desc
 
 
 def plane_homography(fa: tuple, fb: tuple) -> tuple[np.ndarray | None, np.ndarray, np.ndarray]:
