@@ -684,7 +684,8 @@ def _job_file(args) -> dict:
 
 def record(job: jobs.Job | dict, argv: list[str]) -> JobRecord:
     """The job's record: its settings (:func:`.core.jobs.settings_doc`; a job refused before it was
-    one: the options given) and input identity."""
+    one: the options given) and input identity (with the content of the files its settings name,
+    :func:`.core.jobs.side_files`)."""
     if isinstance(job, dict):
         settings = {k: v for k, v in sorted(job.items()) if k not in jobs.PLACES and v is not None}
         video, outline = job.get("video") or job.get("tree"), job.get("outline")
@@ -695,6 +696,9 @@ def record(job: jobs.Job | dict, argv: list[str]) -> JobRecord:
     ident = (identity.files_identity(list(job.exemplars) + [o for o in job.outlines if o != "-"], "exemplars")
              if isinstance(job, jobs.VariationsJob)
              else identity.input_identity(video, outline))
+    side = identity.files_identity(jobs.side_files(settings), "side_files")
+    if ident is not None and side is not None:          # cuts, bark photos, species...: their content too
+        ident = dict(ident, side_files=side["side_files"], side_sha256=side["sha256"])
     return JobRecord(list(argv), settings, identity.settings_hash(settings), __version__, input=ident)
 
 

@@ -62,6 +62,9 @@ OPTIONS: dict[str, type] = {
 }
 #: the options that say where a job reads and writes (not its settings: not in its settings hash)
 PLACES = ("video", "outline", "out", "tree")
+#: the options that name files a job reads besides its video and outline: their content is part of
+#: the job's input identity (:func:`side_files`), so a farm re-runs a job whose cut or photo changed
+SIDE_FILES = ("bark_image", "cut", "leaf_image", "species", "envelope", "audio")
 #: the game options an ``engine`` preset fills when not given
 GAME = ("bones", "lods", "loop", "pivot_painter", "bone_texture", "collision", "viewer", "impostor")
 #: the reconstruction's options → the :func:`~.pipeline.from_flat` names they set
@@ -422,6 +425,25 @@ def to_flat(job: Job) -> dict:
             m = job.motion
             flat.update(species=m.species or None, seconds=float(m.seconds), wind=float(m.wind), seed=m.seed)
     return {k: v for k, v in flat.items() if v is not None}
+
+
+def side_files(settings: dict) -> list[str]:
+    """The files ``settings`` (:func:`settings_doc`) names in :data:`SIDE_FILES`, in order: a
+    folder's files by name, a cut's ``FILE@X,Y,Z`` its file; names that are no file (``video``, a
+    preset) are left out."""
+    import os
+    out: list[str] = []
+    for key in SIDE_FILES:
+        value = settings.get(key)
+        for item in value if isinstance(value, list) else [value] if value else []:
+            path = str(item)
+            if key == "cut" and "@" in path and not os.path.exists(path):
+                path = path.rsplit("@", 1)[0]
+            if os.path.isdir(path):
+                out += sorted(os.path.join(path, n) for n in os.listdir(path) if os.path.isfile(os.path.join(path, n)))
+            elif os.path.isfile(path):
+                out.append(path)
+    return out
 
 
 def settings_doc(job: Job) -> dict:

@@ -15,6 +15,7 @@ import pytest
 from job_report import check_report
 
 from tree_from_video import cli
+from tree_from_video.core import jobs
 from tree_from_video.core.farm import identity
 
 from samples import ROOT, committed
@@ -149,6 +150,29 @@ def test_the_rerun_decision():
     assert identity.decide(ok, "s", {"sha256": "b" * 64, "outline_sha256": None}, False).action == "run"
     for status in ("running", "bad_input", "error", "cancelled"):
         assert identity.decide(dict(ok, status=status), "s", v, False).action == "redo"
+    assert identity.decide(ok, "s", dict(v, side_sha256="c" * 64), False).action == "run"   # a cut changed
+
+
+def test_a_changed_cut_or_bark_photo_is_another_input(tmp_path):
+    """The files a job's settings name (a cut, bark photos in a folder) are hashed into its input
+    identity: the same settings with a cut file rewritten, or a photo added to the folder, are not
+    skipped."""
+    cut, photos = tmp_path / "limb.npz", tmp_path / "bark"
+    cut.write_bytes(b"one")
+    photos.mkdir()
+    (photos / "a.jpg").write_bytes(b"a")
+    argv = [VIDEO, "--outline", OUTLINE, "--generate", "2", "--out", str(tmp_path / "out"), "--cut", f"{cut}@0,0,1",
+            "--bark-image", str(photos)]
+    job = jobs.from_flat(cli.options(cli.build_parser().parse_args(argv)), "the job")
+    first = cli.record(job, argv)
+    assert [os.path.basename(f["file"]) for f in first.input["side_files"]] == ["a.jpg", "limb.npz"]   # SIDE_FILES order
+    prior = {"status": "ok", "settings_sha256": first.settings_sha256, "input": first.input}
+    assert identity.decide(prior, first.settings_sha256, cli.record(job, argv).input, False).action == "skip"
+    cut.write_bytes(b"two")
+    assert identity.decide(prior, first.settings_sha256, cli.record(job, argv).input, False).action == "run"
+    cut.write_bytes(b"one")
+    (photos / "b.jpg").write_bytes(b"b")
+    assert identity.decide(prior, first.settings_sha256, cli.record(job, argv).input, False).action == "run"
 
 
 def test_job_argv_follows_the_parser():

@@ -1,5 +1,6 @@
-"""What makes two runs the same job: the input files' content (SHA-256) and the settings
-(a hash of their canonical JSON), and the decision a re-run takes from the report a folder holds."""
+"""What makes two runs the same job: the input files' content (SHA-256: the video, the outline, and
+the files the settings name, ``side_sha256``) and the settings (a hash of their canonical JSON), and
+the decision a re-run takes from the report a folder holds."""
 from __future__ import annotations
 
 import hashlib
@@ -65,7 +66,8 @@ def decide(prior: dict | None, settings_sha: str, input_doc: dict | None, force:
     status = prior.get("status")
     same = (prior.get("settings_sha256") == settings_sha
             and (prior.get("input") or {}).get("sha256") == (input_doc or {}).get("sha256")
-            and (prior.get("input") or {}).get("outline_sha256") == (input_doc or {}).get("outline_sha256"))
+            and (prior.get("input") or {}).get("outline_sha256") == (input_doc or {}).get("outline_sha256")
+            and (prior.get("input") or {}).get("side_sha256") == (input_doc or {}).get("side_sha256"))
     if status == "ok":
         if same and not force:
             return Decision("skip", "done: report.json is ok with the same settings and input (--force runs it again)")
