@@ -14,7 +14,7 @@ from bark_photos import bark_photo
 from job_report import check_report
 from test_exports import read_glb
 
-from tree_from_video.core.detail.bark_photo import moss_lichen
+from tree_from_video.core.detail.bark_photo import moss_lichen, up_weight
 
 from samples import ROOT, committed
 
@@ -87,13 +87,15 @@ def glb_array(doc, binary, index) -> np.ndarray:
 def test_moss_grows_on_the_branches_upper_side_in_the_glb(tmp_path):
     """The glTF carries the moss where it grows: read back (positions, normals, UVs, indices, the
     base colour image) from the GLB alone, the faces whose normal points up (glTF's +Y, > 0.5) show
-    moss by colour at least 3 × as often as the faces that point down (< −0.5)."""
+    moss by colour at least 3 × as often as the faces that point down (< −0.5). The FBX (its
+    embedded image, re-imported) and the USD (its image beside it) carry the same image: its moss
+    in the band of the tubes' upper side (u ≡ 0.5)."""
     photo, _, _ = bark_photo(5, moss_share=0.12)
     path = tmp_path / "bark.jpg"
     cv2.imwrite(str(path), photo)
     out = tmp_path / "mossy"
-    code, err = run(VIDEO, "--outline", OUTLINE, "--out", out, *QUICK, "--gltf", "--bark-image", path,
-                    "--moss", "1", "--bark-scale", "40")
+    code, err = run(VIDEO, "--outline", OUTLINE, "--out", out, *QUICK, "--gltf", "--fbx", "--usd", "--bark-image",
+                    path, "--moss", "1", "--bark-scale", "40")
     assert code == 0, err
     doc, binary = read_glb(out / "tree.glb")
     bark = next(i for i, m in enumerate(doc["materials"]) if "Bark" in m["name"])
@@ -122,6 +124,24 @@ def test_moss_grows_on_the_branches_upper_side_in_the_glb(tmp_path):
           f"{int((up < -0.5).sum())} downward ones; {100 * moss.mean():.1f} % of the texture")
     assert (up > 0.5).sum() > 50 and (up < -0.5).sum() > 50
     assert top > 0.1 and top >= 3.0 * bottom
+
+    def band(bgr):                                  # moss share of the upper side's columns, the underside's
+        seen = moss_lichen(bgr)[0]
+        w = up_weight(seen.shape[1])
+        return seen[:, w > 0.85].mean(), seen[:, w < 0.15].mean()
+    import bpy
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    bpy.ops.import_scene.fbx(filepath=str(out / "tree.fbx"))
+    imported = next(m for m in bpy.data.materials if "Bark" in m.name)
+    bsdf = next(n for n in imported.node_tree.nodes if n.type == "BSDF_PRINCIPLED")
+    image = bsdf.inputs["Base Color"].links[0].from_node.image
+    rgba = np.array(image.pixels[:], np.float32).reshape(image.size[1], image.size[0], 4)[::-1]   # rows bottom-up
+    fbx_bgr = np.clip(np.rint(rgba[..., 2::-1] * 255), 0, 255).astype(np.uint8)
+    usd_bgr = cv2.imread(str(out / "textures" / "Tree_video_Bark_albedo.png"))
+    for name, bgr in (("GLB", albedo), ("FBX", fbx_bgr), ("USD", usd_bgr)):
+        hi, lo = band(bgr)
+        print(f"{name} image: moss on {100 * hi:.1f} % of the upper side's columns, {100 * lo:.1f} % of the underside's")
+        assert hi > 0.1 and hi >= 5.0 * lo
 
 
 def test_a_bad_bark_photo_is_one_line(tmp_path):
