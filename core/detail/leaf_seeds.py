@@ -236,8 +236,13 @@ def place_leaves(tree, points: np.ndarray, frame_bgr: np.ndarray, base_px: np.nd
                 pts, pos = np.concatenate([pts, new]), np.concatenate([pos, npos])
                 node, dark = np.concatenate([node, nnode]), np.concatenate([dark, ndark])
                 size = np.concatenate([size, _size_at(d_own, new, scale, radius)])
-    colour = leaf_colours(sample_colour(frame_bgr, pts, tree_px=tree_px), p.colour, light or scene_light(frame_bgr, mask),
-                          reference=foliage_colour(frame_bgr, pts, tree_px, mask, radius / scale))
+    leaf_px = tree_px
+    if tree_px is not None:            # the foliage's colour: its own pixels (the cut's foreground where
+        # the colour test missed the crown, as for the region above), without the traced trunk and limbs
+        leaf_px = own if mask is not None else np.asarray(tree_px, bool)
+        leaf_px = leaf_px & ~bark_pixels(np.shape(tree_px), tree, np.asarray(base_px, float), scale)
+    colour = leaf_colours(sample_colour(frame_bgr, pts, tree_px=leaf_px), p.colour, light or scene_light(frame_bgr, mask),
+                          reference=foliage_colour(frame_bgr, pts, leaf_px, mask, radius / scale))
     tree.meta["leaf_colour"] = colour.meta(p.colour)
     return make_clusters(tree, node, pos, colour.colours, dark, radius, p.cards, p.seed, size, p)
 
