@@ -240,7 +240,7 @@ def place_leaves(tree, points: np.ndarray, frame_bgr: np.ndarray, base_px: np.nd
     if tree_px is not None:            # the foliage's colour: its own pixels (the cut's foreground where
         # the colour test missed the crown, as for the region above), without the traced trunk and limbs
         leaf_px = own if mask is not None else np.asarray(tree_px, bool)
-        leaf_px = leaf_px & ~bark_pixels(np.shape(tree_px), tree, np.asarray(base_px, float), scale)
+        leaf_px = leaf_px & ~bark_pixels((int(leaf_px.shape[0]), int(leaf_px.shape[1])), tree, np.asarray(base_px, float), scale)
     colour = leaf_colours(sample_colour(frame_bgr, pts, tree_px=leaf_px), p.colour, light or scene_light(frame_bgr, mask),
                           reference=foliage_colour(frame_bgr, pts, leaf_px, mask, radius / scale))
     tree.meta["leaf_colour"] = colour.meta(p.colour)
