@@ -34,6 +34,7 @@ from .core.detail.bark_photo import (
     read_bark_photo,
     write_bark_files,
 )
+from .core.detail.bark_stereo import MIN_INLIERS
 from .core.detail.branch_mesh import MeshParams
 from .core.detail.leaf_clusters import LeafParams
 from .core.detail.relief import RELIEF_RINGS, RELIEF_SIDES
@@ -569,7 +570,7 @@ def _reconstruct(run: Run) -> int:
         else:
             run.log(f"[bark] {why}")
             photos.append(strip)
-        _make_bark(run, photos)
+        _make_bark(run, photos, len(photos) - (strip is not None))
     for res, tree, folder in zip(results, trees, folders):
         _write_tree(run, res, tree, folder, outputs if plan is None else None, cb)
     if plan is not None:
@@ -610,8 +611,9 @@ def _video_bark(res, tree):
     return trunk_strip(frame, sk.parents, sk.nodes2d[0], radius_px, tmap.tree if tmap is not None else None)
 
 
-def _make_bark(run: Run, photos: list) -> None:
-    """The bark tile of the job's photos, its files in the job's folder (DIR/bark_*.png, bark.json)."""
+def _make_bark(run: Run, photos: list, files: int | None = None) -> None:
+    """The bark tile of the job's photos, its files in the job's folder (DIR/bark_*.png, bark.json);
+    ``files`` how many of them are photo files (the rest: the video's trunk; None: all)."""
     if not photos:
         return
     o = run.job.outputs
@@ -620,6 +622,14 @@ def _make_bark(run: Run, photos: list) -> None:
     run.record.add(bark_tile_px=run.bark.textures.albedo.shape[0])
     run.log(f"[bark] a {run.bark.scale_cm:g} cm tile from {len(photos)} photo(s): moss "
             f"{run.bark.moss[0]:.1%} -> {run.bark.moss[1]:.1%}, lichen {run.bark.lichen[0]:.1%} -> {run.bark.lichen[1]:.1%}")
+    for k, said in enumerate(run.bark.height_from):
+        run.log(f"[bark] photo {k + 1}'s height: {said}")
+    files = len(photos) if files is None else files
+    if files > 1 and not any(s.startswith("stereo") for s in run.bark.height_from):
+        w = (f"the {files} bark photos do not overlap (no two share {MIN_INLIERS} matches): their relief "
+             "is from their shading; photos of the same bark a step apart give it by parallax")
+        sys.stderr.write(f"warning: {w}\n")
+        run.record.warn(w)
 
 
 def _write_tree(run: Run, res, tree, out: str, outputs, cb) -> None:

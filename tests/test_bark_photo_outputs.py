@@ -10,7 +10,7 @@ import sys
 import cv2
 import numpy as np
 import pytest
-from bark_photos import bark_photo
+from bark_photos import bark_pair, bark_photo
 from job_report import check_report
 from test_exports import read_glb
 
@@ -212,3 +212,29 @@ def test_a_species_keeps_its_bark(tmp_path):
     os.unlink(src / "bark_normal.png")
     code, err = run("--generate", "1", "--species", src / "species.json", "--out", tmp_path / "bad")
     assert code == 2 and "bark_normal.png" in err and len(err.strip().splitlines()) == 1
+
+
+def test_several_bark_photos_say_where_their_relief_came_from(tmp_path):
+    """A folder of two shots of the same bark: their relief from parallax (bark.json), no warning;
+    two photos of different bark: one warning line that they do not overlap, in the report too."""
+    a, b, _, _ = bark_pair(44, move=(3.0, -1.0, 0.0))
+    same = tmp_path / "same"
+    same.mkdir()
+    cv2.imwrite(str(same / "1.jpg"), a)
+    cv2.imwrite(str(same / "2.jpg"), b)
+    other = tmp_path / "other.jpg"
+    cv2.imwrite(str(other), bark_photo(45)[0])
+    for name, photos in (("pair", [same]), ("apart", [same / "1.jpg", other])):
+        out = tmp_path / name
+        args = [a for p in photos for a in ("--bark-image", p)]
+        code, err = run(VIDEO, "--outline", OUTLINE, "--out", out, *QUICK, *args)
+        assert code == 0, err
+        said = json.loads((out / "bark.json").read_text())["height_from"]
+        warned = [ln for ln in err.splitlines() if "do not overlap" in ln]
+        report = check_report(out)
+        print(f"\n{name}: {said}; {warned}")
+        if name == "pair":
+            assert [s.split(":")[0] for s in said] == ["stereo with photo 2", "stereo with photo 1"] and not warned
+        else:
+            assert said == ["shading", "shading"] and len(warned) == 1 and warned[0].startswith("warning: the 2 bark")
+            assert sum("do not overlap" in w for w in report["warnings"]) == 1
