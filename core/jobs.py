@@ -428,22 +428,24 @@ def to_flat(job: Job) -> dict:
 
 
 def side_files(settings: dict) -> list[str]:
-    """The files ``settings`` (:func:`settings_doc`) names in :data:`SIDE_FILES`, in order: a
-    folder's files by name, a cut's ``FILE@X,Y,Z`` its file; names that are no file (``video``, a
-    preset) are left out."""
+    """The files ``settings`` (:func:`settings_doc`) names in :data:`SIDE_FILES`, in order, as the
+    job reads them: a bark folder's photos (:func:`.detail.bark_photo.bark_photo_files`), a cut's
+    file (:func:`.generate.cuts.parse_cut_spec`); names that are no file (``video``, a preset, a
+    folder without photos, a bad cut) are left out: the run names those."""
     import os
+
+    from .detail.bark_photo import bark_photo_files
+    from .generate.cuts import parse_cut_spec
     out: list[str] = []
     for key in SIDE_FILES:
         value = settings.get(key)
         for item in value if isinstance(value, list) else [value] if value else []:
-            path = str(item)
-            if key == "cut" and "@" in path and not os.path.exists(path):
-                path = path.rsplit("@", 1)[0]
-            if os.path.isdir(path):
-                out += sorted(os.path.join(path, n) for n in os.listdir(path) if os.path.isfile(os.path.join(path, n)))
-            elif os.path.isfile(path):
-                out.append(path)
-    return out
+            try:
+                path = parse_cut_spec(item).path if key == "cut" else str(item)
+                out += bark_photo_files(path) if key == "bark_image" and os.path.isdir(path) else [path]
+            except InputError:
+                continue
+    return [p for p in out if os.path.isfile(p)]
 
 
 def settings_doc(job: Job) -> dict:
