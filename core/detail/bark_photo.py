@@ -458,10 +458,10 @@ def uv_square(maps: BarkMaps, trunk_radius_m: float, max_px: int = 2048) -> tupl
         mask = maps.moss_mask.astype(bool)
         bare = cv2.inpaint(t.albedo, cv2.dilate(mask.astype(np.uint8), np.ones((3, 3), np.uint8)), 5,
                            cv2.INPAINT_TELEA)
+        height = tiled(t.height.astype(np.float32), cv2.INTER_AREA)
         albedo, top = moss_on_top(albedo, tiled(bare, cv2.INTER_AREA),
-                                  tiled(mask.astype(np.float32), cv2.INTER_AREA) > 0.5,
-                                  tiled(t.height.astype(np.float32), cv2.INTER_AREA), P / (16.0 * k))
-        rough = np.where(top, 0.9, 0.6 + 0.35 * (1.0 - tiled(t.height.astype(np.float32), cv2.INTER_AREA)))
+                                  tiled(mask.astype(np.float32), cv2.INTER_AREA) > 0.5, height, P / (16.0 * k))
+        rough = np.where(top, 0.9, 0.6 + 0.35 * (1.0 - height))
     return albedo, np.clip(np.rint((normal + 1.0) * 127.5), 0, 255).astype(np.uint8), rough.astype(np.float32), k
 
 

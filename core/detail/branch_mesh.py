@@ -298,7 +298,7 @@ def tube_arrays(rest_pos: np.ndarray, parents: np.ndarray, rest: np.ndarray, r_h
 
     u_side = np.tile(np.stack([k, k, k + 1, k + 1], axis=1).ravel() / S, K - 1)         # (4S(K−1),)
     ring_of_loop = np.broadcast_to(j[:, :, None] + np.array([0, 1, 1, 0]), (K - 1, S, 4)).reshape(-1)
-    u0 = up_offsets(seg / np.maximum(length, 1e-12)[:, None], rx, rz)                                                    # (B, K)
+    u0 = up_offsets(seg / np.maximum(length, 1e-12)[:, None], rx, rz)                     # (B, K)
     u_cap = 0.5 + np.cos(theta) / (2 * math.pi)
     uv = np.empty((B, n_loops, 2))
     ns = 4 * S * (K - 1)

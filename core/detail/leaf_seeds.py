@@ -201,6 +201,8 @@ def place_leaves(tree, points: np.ndarray, frame_bgr: np.ndarray, base_px: np.nd
         spacing = 0.05 * max(float(np.ptp(rest[:, 2])), 1e-3)
     radius = max(p.coverage * spacing, 1e-4)
     size = np.ones(len(pos), np.float32)
+    base = np.asarray(base_px, float)
+    bark: np.ndarray | None = None                         # frame 1's pixels of the traced trunk and limbs
     if mask is not None:                                   # end where the foliage ends
         if tree_px is not None:                            # the tree's own pixels in frame 1
             own = np.asarray(tree_px, bool) & np.asarray(mask, bool)
@@ -219,9 +221,10 @@ def place_leaves(tree, points: np.ndarray, frame_bgr: np.ndarray, base_px: np.nd
             own = region
         dist = cv2.distanceTransform(region.astype(np.uint8), cv2.DIST_L2, 5)
         size = _size_at(dist, pts, scale, radius)
+        bark = bark_pixels(region.shape, tree, base, scale)
         if p.fill:                                         # clusters where the foliage is still bare
             # the foliage's own pixels (not the gaps the closing bridged), bark left out
-            target = own & ~bark_pixels(region.shape, tree, np.asarray(base_px, float), scale)
+            target = own & ~bark
             d_own = cv2.distanceTransform(target.astype(np.uint8), cv2.DIST_L2, 5)
             for _ in range(TOP_UP_ROUNDS):
                 if len(pts) >= p.max_clusters:
@@ -239,8 +242,10 @@ def place_leaves(tree, points: np.ndarray, frame_bgr: np.ndarray, base_px: np.nd
     leaf_px = tree_px
     if tree_px is not None:            # the foliage's colour: its own pixels (the cut's foreground where
         # the colour test missed the crown, as for the region above), without the traced trunk and limbs
-        leaf_px = own if mask is not None else np.asarray(tree_px, bool)
-        leaf_px = leaf_px & ~bark_pixels((int(leaf_px.shape[0]), int(leaf_px.shape[1])), tree, np.asarray(base_px, float), scale)
+        if bark is None:                                   # no mask: the tree's pixels are its own
+            own = np.asarray(tree_px, bool)
+            bark = bark_pixels((own.shape[0], own.shape[1]), tree, base, scale)
+        leaf_px = own & ~bark
     colour = leaf_colours(sample_colour(frame_bgr, pts, tree_px=leaf_px), p.colour, light or scene_light(frame_bgr, mask),
                           reference=foliage_colour(frame_bgr, pts, leaf_px, mask, radius / scale))
     tree.meta["leaf_colour"] = colour.meta(p.colour)

@@ -64,10 +64,9 @@ def decide(prior: dict | None, settings_sha: str, input_doc: dict | None, force:
     if prior is None:
         return Decision("run", "no report yet")
     status = prior.get("status")
+    before, now = prior.get("input") or {}, input_doc or {}
     same = (prior.get("settings_sha256") == settings_sha
-            and (prior.get("input") or {}).get("sha256") == (input_doc or {}).get("sha256")
-            and (prior.get("input") or {}).get("outline_sha256") == (input_doc or {}).get("outline_sha256")
-            and (prior.get("input") or {}).get("side_sha256") == (input_doc or {}).get("side_sha256"))
+            and all(before.get(k) == now.get(k) for k in ("sha256", "outline_sha256", "side_sha256")))
     if status == "ok":
         if same and not force:
             return Decision("skip", "done: report.json is ok with the same settings and input (--force runs it again)")
