@@ -87,3 +87,49 @@ def test_frame1_brings_the_traced_skeleton_closer_to_the_truth(runs, variant):
     print(f"\n{variant}: without frame 1 {a}\n{variant}: with frame 1    {b}")
     assert b.chamfer1 < (0.7 if variant == "sparse" else 0.95) * a.chamfer1
     assert b.coverage >= a.coverage - 0.01
+
+
+def test_stem_core_is_the_middle_half_of_the_outlines_foot():
+    """An outline drawn round a crown narrowing to a 20 px stem over its lowest 40 rows: the core is
+    the middle half of those rows in its lowest quarter (10 px); an outline as wide at its foot as
+    anywhere has none."""
+    from tree_from_video.core.reconstruct.frame_evidence import stem_core
+    mask = np.zeros((200, 160), bool)
+    cv2.circle(mask.view(np.uint8), (80, 80), 60, 1, -1)
+    mask[140:190, 70:90] = True                          # the stem, rows 141-189 below the circle
+    core = stem_core(mask)
+    rows = np.flatnonzero(core.any(1))
+    # the lowest quarter of the height (20-189): rows above 189 − 42.5, all of them the stem's
+    assert rows.min() == 147 and rows.max() == 189 and len(rows) == 43
+    assert set(core.sum(1)[rows]) == {10} and core[rows][:, 75:85].all()       # |x − 79.5| ≤ 5
+    box = np.zeros((200, 160), bool)
+    box[20:192, 20:140] = True
+    assert stem_core(box) is None
+
+
+def test_a_bright_trunk_takes_its_colour_from_the_stem():
+    """A sunlit trunk (brighter than its crown) with dark young trees at its foot: the trunk pixels
+    the clip's dark ridges give are the young trees' edges, whose colour marks none of the stem's
+    middle; the bark colour then comes from the stem, and marks the trunk, not the young trees."""
+    img = np.empty((200, 160, 3), np.float32)
+    img[:] = SKY
+    rng = np.random.default_rng(3)
+    img += rng.normal(0, 1.5, img.shape)
+    crown = np.zeros((200, 160), np.uint8)
+    cv2.circle(crown, (80, 70), 55, 1, -1)
+    img[crown > 0] = (40, 90, 50)
+    img[60:195, 72:90] = (80, 140, 215)                   # the orange trunk, up into the crown
+    bush = np.zeros((200, 160), np.uint8)
+    cv2.ellipse(bush, (62, 190), (14, 30), 0, 0, 360, 1, -1)
+    cv2.ellipse(bush, (100, 190), (14, 30), 0, 0, 360, 1, -1)
+    bush[:, 72:90] = 0
+    img[bush > 0] = (35, 80, 45)
+    img = np.clip(img + rng.normal(0, 2, img.shape), 0, 255).astype(np.uint8)
+    mask = crown > 0
+    mask[120:195, 66:96] = True
+    edges = (cv2.dilate(bush, np.ones((3, 3), np.uint8)) > 0) & (bush == 0) | (bush > 0) & (np.arange(160) < 73)
+    fe = frame_evidence(img, mask, edges & (np.arange(200)[:, None] > 150))
+    assert fe.stem is not None and fe.bark is not None
+    assert fe.bark[150:195, 74:88].mean() > 0.8          # the trunk
+    assert fe.bark[bush > 0].mean() < 0.1 and fe.bark[crown > 0][:100].mean() < 0.1
+    assert 16 <= fe.trunk_width <= 20

@@ -36,7 +36,7 @@ from ..outline import Outline
 from ..progress import ProgressFn, report
 from ..topology import branching_level
 from .appearance import AppearanceMaps
-from .frame_evidence import frame_evidence
+from .frame_evidence import FrameEvidence, frame_evidence
 from .hierarchy import Hierarchy
 from .node_motion import follow_tracks
 from .pixel_graph import grid_graph
@@ -65,6 +65,7 @@ class TraceParams:
     max_twigs: int = 300             # at most this many twig targets (many tracks in a large video)
     frame1: bool = True              # also trace on frame 1's own pixels (see frame_evidence)
     frame_ridge_scales: tuple = (1.0, 2.0)   # working px: bark in one frame is sharp and thin
+    trunk_ridge_scale: float = 0.29  # × the stem's measured width: the ridge scale centred on a wide trunk
     background_cost: float = 6.0     # extra cost per px of what frame 1 shows as background
     bark_colour_tol: float = 2.0     # CIELAB distance beyond the trunk's own colour spread
     max_bark_share: float = 0.3      # a crown more bark-coloured than this: colour tells nothing
@@ -366,21 +367,34 @@ def trunk_base(ridge: np.ndarray, evidence: np.ndarray, mask: np.ndarray) -> tup
 
 
 def with_frame1(params: TraceParams, maps: AppearanceMaps, rn: np.ndarray,
-                size: float) -> tuple[np.ndarray, np.ndarray | None]:
+                size: float) -> tuple[np.ndarray, FrameEvidence | None, np.ndarray | None]:
     """The clip's normalized ridge strength ``rn (h, w)`` joined with frame 1's (see
-    :mod:`.frame_evidence`): ``max(rn, ridge(bark₁) / p99)``, bark colour taken from the trunk
-    (the lowest quarter of the outline where ``rn > 0.5``); also frame 1's background map, or
-    None when the outline leaves no background to compare with. ``size`` tree height (px)."""
+    :mod:`.frame_evidence`): ``max(rn, ridge(bark₁) / p99)``, bark colour taken from the outline's
+    stem, else from the trunk (the lowest quarter of the outline where ``rn > 0.5``), and ridge
+    scales widened to the stem's measured width; also frame 1's evidence (None when the outline
+    leaves no background to compare with) and, for a trunk wider than the frame's ridge scales
+    whose middle the clip's ridge misses (median ``rn`` < 0.5 over the stem), the bark's ridge at
+    the trunk's scale alone (it marks the trunk's middle, where the finer scales mark its edges;
+    else None). ``size`` tree height (px)."""
     mask = maps.mask
     ys, _ = np.nonzero(mask)
     low = np.arange(mask.shape[0])[:, None] > ys.max() - 0.25 * size
     fe = frame_evidence(maps.first, mask, mask & low & (rn > 0.5), params.bark_colour_tol,
                         params.max_bark_share)
+    trunk_ridge = None
     if fe is None:
-        return rn, None
+        return rn, None, trunk_ridge
     if fe.bark is not None:
-        rn = np.maximum(rn, normalized(ridge_filter(fe.bark, params.frame_ridge_scales), mask)[0])
-    return rn, fe.background
+        scales = tuple(params.frame_ridge_scales)
+        wide = params.trunk_ridge_scale * fe.trunk_width     # NaN without a stem
+        rn_frame = normalized(ridge_filter(fe.bark, scales), mask)[0]
+        # a trunk wider than the frame's scales that the clip's ridge misses (bright, sunlit):
+        # σ = w / (2√3) peaks a bar of width w at its middle, not its edges
+        if wide > max(scales) and float(np.median(rn[fe.stem])) < 0.5:
+            trunk_ridge = ridge_filter(fe.bark, (wide,))
+            rn_frame = np.maximum(rn_frame, normalized(trunk_ridge, mask)[0])
+        rn = np.maximum(rn, rn_frame)
+    return rn, fe, trunk_ridge
 
 
 def trace_cost(params: TraceParams, mask: np.ndarray, rn: np.ndarray, ridge: np.ndarray, sky: np.ndarray,
@@ -501,11 +515,16 @@ def traced_skeleton(tracks: Tracks, hier: Hierarchy, outline: Outline, maps: App
     ridge = ridge_filter(ev, params.ridge_scales)
     warnings = []
     rn, rscale = normalized(ridge, mask)
-    background = None
+    background = bark1 = None
+    trunk_ridge = None
     if params.frame1:
-        rn, background = with_frame1(params, maps, rn, size)
+        rn, fe, trunk_ridge = with_frame1(params, maps, rn, size)
+        if fe is not None:
+            background, bark1 = fe.background, fe.bark
     has_evidence = rscale > 1e-6 and float((rn > 0.3).sum()) > 0.02 * size * size / 10
     sky = sky_likeness(maps)
+    if trunk_ridge is not None and bark1 is not None:   # a sunlit trunk: bright, steady, smooth, but bark
+        sky = sky * (1.0 - bark1)
     tree = mask
     if tree_mask is not None:
         tree = cv2.resize(np.asarray(tree_mask, np.uint8), mask.shape[::-1], interpolation=cv2.INTER_NEAREST) > 0
@@ -516,6 +535,8 @@ def traced_skeleton(tracks: Tracks, hier: Hierarchy, outline: Outline, maps: App
                             "traced in the whole outline (draw the outline tighter round the tree)")
             tree = mask
     hidden = hidden_trunk(tree, params.base_width, params.hidden_trunk, mask)
+    if trunk_ridge is not None:   # a wide trunk the clip misses: its base and crest on frame 1's ridge
+        ridge = np.maximum(ridge / max(rscale, 1e-6), trunk_ridge / max(float(trunk_ridge[mask].max()), 1e-6))
     bx, by = trunk_base(ridge, ev, mask) if hidden is None else hidden[:2]
     if hidden is not None:
         warnings.append(f"the crown reaches the ground (at its base the tree is {hidden[3]:.0%} as wide as at "
