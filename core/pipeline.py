@@ -249,7 +249,7 @@ def build_3d(res: Result, s: Settings | None = None, name: str = "Tree",
             fit = measure_branches(sk.parents, sk.nodes2d[0], tmap)
             if sk.kind == "grown":            # the frame shows the trunk, not limbs grown behind the leaves
                 fit = replace(fit, width_px=np.where(sk.level == 0, fit.width_px, np.nan))
-            vf = fit_to_video(sk.parents, sk.level, sk.nodes2d[0], fit, s.pipe_exponent)
+            vf = fit_to_video(sk.parents, sk.level, sk.nodes2d[0], fit, s.pipe_exponent, sk.trunk_width_px)
             radius_px = vf.radius_px
             if radius_px is not None:               # onto the branches' centre lines, every frame
                 sk = replace(sk, nodes2d=(sk.nodes2d + vf.shift_px[None]).astype(np.float32))

@@ -7,7 +7,8 @@ outline's foot, the trace's bark colour, were the young trees').
 Drawn here: a crown of shaded green with sunlit tufts, an orange trunk with darker grooves up
 through it, young trees of the crown's shaded green at its foot, against a blue sky, inside an
 outline drawn as a user draws one (the crown's hull, narrowing to the trunk at the foot). The
-trunk's chain below the crown stays in the trunk's middle half; seeds never tuned on."""
+trunk's chain below the crown stays in the trunk's middle half, and the built trunk is as wide as
+the drawn one; seeds never tuned on."""
 import json
 
 import cv2
@@ -15,6 +16,8 @@ import numpy as np
 import pytest
 
 from tree_from_video.core import pipeline
+from tree_from_video.core.generate.photo import PhotoMotion
+from tree_from_video.core.reconstruct.skeleton_io import load_skeleton, save_skeleton
 from tree_from_video.core.topology import children_lists, topological_order
 
 from samples import plain_settings
@@ -109,3 +112,12 @@ def test_a_sunlit_trunk_is_traced_up_its_middle(tmp_path, seed):
     assert off.max() < 0.5, off.round(2)                     # inside the trunk
     assert off[low].max() <= 0.25, off.round(2)              # in its middle half below the fork
     assert rise >= 0, "the main stem leaves the trunk below the crown"
+    # its width: frame 1's profiles see grooved bark against the young trees' wood; the trace's
+    # count of the stem's bark colour sets the radii, kept through skeleton.npz
+    assert abs(sk.trunk_width_px - truth["width"]) <= 0.15 * truth["width"], sk.trunk_width_px
+    save_skeleton(tmp_path / "skeleton.npz", sk)
+    assert load_skeleton(tmp_path / "skeleton.npz")[0].trunk_width_px == pytest.approx(sk.trunk_width_px)
+    tree = pipeline.build_3d(res, plain_settings(), photo=PhotoMotion(seconds=0.5))
+    base = 2 * tree.radius[0] / tree.meta["metres_per_px"]
+    print(f"the trunk's width {sk.trunk_width_px:.1f} px measured, {base:.1f} px built, {truth['width']:.0f} px drawn")
+    assert abs(base - truth["width"]) <= 0.15 * truth["width"]

@@ -242,7 +242,7 @@ def taper(parents: np.ndarray, r: np.ndarray) -> np.ndarray:
 
 
 def fit_to_video(parents: np.ndarray, level: np.ndarray, nodes_px: np.ndarray, fit: BranchFit,
-                 exponent: float = 2.0) -> VideoFit:
+                 exponent: float = 2.0, trunk_px: float = float("nan")) -> VideoFit:
     """Radii and node moves (:class:`VideoFit`) from the measurements ``fit``.
 
     The pipe model ``r_pipe`` (tips 1) is scaled by the trunk, whose base is bark in nearly
@@ -251,7 +251,10 @@ def fit_to_video(parents: np.ndarray, level: np.ndarray, nodes_px: np.ndarray, f
     is trusted when it agrees with ``k · r_pipe`` within [1/2, 3/2] (farther off, the profile
     crossed foliage or a second branch) and, for branches above the trunk, root to tip, is at
     most ``PARENT_SLACK`` × its parent's radius (wider, the profile ran across a fork; the
-    trunk's own widths set k and only taper). Trusted branches keep their width
+    trunk's own widths set k and only taper). A trunk width ``trunk_px`` the trace measured
+    (:attr:`.skeleton2d.Skeleton2D.trunk_width_px`: a sunlit trunk, its colour counted over the
+    outline's stem, where the profiles see grooved bark against wood around the outline's foot)
+    sets ``k = trunk_px / 2 / r_pipe(root)`` instead. Trusted branches keep their width
     and move their two nodes (a node by the mean offset of its trusted edges) onto the centre
     line; the others keep ``k · r_pipe``. Last, the radii :func:`taper`."""
     from ..tree3d import pipe_radii
@@ -263,13 +266,16 @@ def fit_to_video(parents: np.ndarray, level: np.ndarray, nodes_px: np.ndarray, f
     y = np.asarray(nodes_px, np.float64)[:, 1]
     trunk = np.flatnonzero((np.asarray(level) == 0) & (parents >= 0))
     none = VideoFit(None, shift, np.zeros(N, bool))
-    if len(trunk) == 0:
-        return none
-    low = trunk[np.argsort(-y[trunk])][:max(1, int(np.ceil(len(trunk) / 3)))]      # image y grows down
-    low = low[np.isfinite(half[low]) & (2 * half[low] >= MIN_MEASURED_PX)]
-    if len(low) == 0:
-        return none
-    k = float(np.median(half[low] / pipe[low]))
+    if np.isfinite(trunk_px) and trunk_px >= MIN_MEASURED_PX:
+        k = 0.5 * float(trunk_px) / float(pipe[0])
+    else:
+        if len(trunk) == 0:
+            return none
+        low = trunk[np.argsort(-y[trunk])][:max(1, int(np.ceil(len(trunk) / 3)))]      # image y grows down
+        low = low[np.isfinite(half[low]) & (2 * half[low] >= MIN_MEASURED_PX)]
+        if len(low) == 0:
+            return none
+        k = float(np.median(half[low] / pipe[low]))
     r = k * pipe
     ratio = np.where(np.isfinite(half), half / np.maximum(r, 1e-9), np.nan)
     trusted = np.isfinite(ratio) & (ratio >= 0.5) & (ratio <= 1.5)

@@ -39,7 +39,10 @@ class Skeleton2D:
     measured); ``times (F,)`` seconds from the first frame (None: ``index / fps``);
     ``hidden_trunk`` the crown hides the trunk (it was drawn, not traced: its pixels are foliage);
     ``limbs_seen`` the trace found bark in the crown (False: its limbs follow the motion hierarchy,
-    a guess the pipeline may replace by grown ones, ``kind`` "grown": :mod:`..generate.limbs`).
+    a guess the pipeline may replace by grown ones, ``kind`` "grown": :mod:`..generate.limbs`);
+    ``trunk_width_px`` frame-1 px: a wide trunk the clip's bark evidence misses (sunlit, brighter
+    than its crown) as the trace measured it, its bark colour's median count over the outline's
+    stem (:mod:`.frame_evidence`; NaN: not measured, branch widths come from frame 1's profiles).
     """
 
     parents: np.ndarray
@@ -52,6 +55,7 @@ class Skeleton2D:
     times: np.ndarray | None = None
     hidden_trunk: bool = False
     limbs_seen: bool = True
+    trunk_width_px: float = float("nan")
 
     @property
     def n_nodes(self) -> int:

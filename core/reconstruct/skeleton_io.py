@@ -19,7 +19,9 @@ def skeleton_arrays(skel: Skeleton2D, meta: dict | None = None) -> dict:
     (where measured), meta_json."""
     info = {"format": "tree_from_video.skeleton2d", "version": FORMAT_VERSION, "kind": skel.kind,
             "warnings": list(skel.warnings), "hidden_trunk": bool(skel.hidden_trunk),
-            "limbs_seen": bool(skel.limbs_seen), **(meta or {})}
+            "limbs_seen": bool(skel.limbs_seen),
+            **({"trunk_width_px": float(skel.trunk_width_px)} if np.isfinite(skel.trunk_width_px) else {}),
+            **(meta or {})}
     return dict(parents=skel.parents.astype(np.int32), nodes2d=skel.nodes2d.astype(np.float32),
                 level=skel.level.astype(np.int32), fps=np.float64(skel.fps), times=frame_times_of(skel),
                 meta_json=np.array(json.dumps(info)),
@@ -47,5 +49,6 @@ def load_skeleton(path: str | os.PathLike) -> tuple[Skeleton2D, dict]:
                           list(meta.get("warnings", [])),
                           z["confidence"].astype(np.float32) if "confidence" in z else None,
                           z["times"].astype(np.float64) if "times" in z else None,
-                          bool(meta.get("hidden_trunk", False)), bool(meta.get("limbs_seen", True)))
+                          bool(meta.get("hidden_trunk", False)), bool(meta.get("limbs_seen", True)),
+                          float(meta.get("trunk_width_px", np.nan)))
     return skel, meta

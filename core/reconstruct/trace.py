@@ -517,10 +517,13 @@ def traced_skeleton(tracks: Tracks, hier: Hierarchy, outline: Outline, maps: App
     rn, rscale = normalized(ridge, mask)
     background = bark1 = None
     trunk_ridge = None
+    trunk_width = float("nan")          # frame px, measured for a wide trunk the clip misses
     if params.frame1:
         rn, fe, trunk_ridge = with_frame1(params, maps, rn, size)
         if fe is not None:
             background, bark1 = fe.background, fe.bark
+            if trunk_ridge is not None:
+                trunk_width = fe.trunk_width / f
     has_evidence = rscale > 1e-6 and float((rn > 0.3).sum()) > 0.02 * size * size / 10
     sky = sky_likeness(maps)
     if trunk_ridge is not None and bark1 is not None:   # a sunlit trunk: bright, steady, smooth, but bark
@@ -571,4 +574,4 @@ def traced_skeleton(tracks: Tracks, hier: Hierarchy, outline: Outline, maps: App
     report(progress, "skeleton", 1.0)
     return Skeleton2D(parents, mo.nodes, branching_level(parents), tracks.fps, "traced", warnings,
                       confidence=mo.confidence, times=tracks.times, hidden_trunk=hidden is not None,
-                      limbs_seen=palm is not None or has_evidence)
+                      limbs_seen=palm is not None or has_evidence, trunk_width_px=trunk_width)
