@@ -5,6 +5,8 @@
 2. Ridges: multi-scale Hessian ridge filter of E (``σ² · max(0, −λ_min)``, max over scales),
    joined (max) with the ridges of frame 1's bark-coloured pixels (:mod:`.frame_evidence`): a
    thin limb that sways by more than its width leaves no ridge in E, but is sharp in frame 1.
+   A trunk wider than those ridges that E misses (sunlit: brighter than its crown) is found by
+   its colour at the outline's stem and gets a ridge at its own scale (:func:`with_frame1`).
 3. A cost per pixel, low on ridges, higher in foliage, highest on bright, steady, smooth
    pixels (sky seen through the crown) and on what frame 1 shows as background; pixels outside
    the outline are not in the graph.
@@ -369,13 +371,14 @@ def trunk_base(ridge: np.ndarray, evidence: np.ndarray, mask: np.ndarray) -> tup
 def with_frame1(params: TraceParams, maps: AppearanceMaps, rn: np.ndarray,
                 size: float) -> tuple[np.ndarray, FrameEvidence | None, np.ndarray | None]:
     """The clip's normalized ridge strength ``rn (h, w)`` joined with frame 1's (see
-    :mod:`.frame_evidence`): ``max(rn, ridge(bark₁) / p99)``, bark colour taken from the outline's
-    stem, else from the trunk (the lowest quarter of the outline where ``rn > 0.5``), and ridge
-    scales widened to the stem's measured width; also frame 1's evidence (None when the outline
-    leaves no background to compare with) and, for a trunk wider than the frame's ridge scales
-    whose middle the clip's ridge misses (median ``rn`` < 0.5 over the stem), the bark's ridge at
-    the trunk's scale alone (it marks the trunk's middle, where the finer scales mark its edges;
-    else None). ``size`` tree height (px)."""
+    :mod:`.frame_evidence`): ``max(rn, ridge(bark₁) / p99)``, bark colour taken from the trunk
+    (the lowest quarter of the outline where ``rn > 0.5``) or, when its colour does not tell the
+    bark, from the outline's stem. A trunk wider than the frame's ridge scales whose middle the
+    clip's ridge misses (median ``rn`` < 0.5 over the stem: sunlit, brighter than its crown) adds
+    the scale ``trunk_ridge_scale`` × its width. Returns the joined ``rn``, frame 1's evidence
+    (None when the outline leaves no background to compare with) and that trunk's ridge at its
+    own scale alone (it marks the trunk's middle, where the finer scales mark its edges; None
+    without such a trunk). ``size`` tree height (px)."""
     mask = maps.mask
     ys, _ = np.nonzero(mask)
     low = np.arange(mask.shape[0])[:, None] > ys.max() - 0.25 * size
