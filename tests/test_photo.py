@@ -1,7 +1,7 @@
 """A tree from one photo (core/generate/photo.py, issue 35): frame 1 of samples saved as a JPEG through
 batch.py — the skeleton traced on it against the sample's truth (chamfer ≤ 2.5 % of the height,
-coverage ≥ 0.75), lifted with the learned depth, and swaying as its species (the dominant frequency
-of the tips' sway is one of the species' within one FFT bin); bad photos: one line, exit 2."""
+coverage ≥ 0.75), lifted with the learned depth, and swaying as its species (the tips' sway spectrum
+over three sway seeds against the species' energy spectrum); bad photos: one line, exit 2."""
 import os
 import subprocess
 import sys
@@ -40,11 +40,33 @@ def frame_one_jpeg(folder: str, path) -> str:
     return str(path)
 
 
-def dominant_hz(x: np.ndarray, fps: float) -> float:
-    """The strongest frequency of ``x (F,)`` (mean removed), Hz."""
-    spec = np.abs(np.fft.rfft(x - x.mean()))
-    spec[0] = 0.0
-    return float(np.fft.rfftfreq(len(x), 1.0 / fps)[int(np.argmax(spec))])
+def tip_spectrum(x: np.ndarray) -> np.ndarray:
+    """The power spectrum of ``x (F, T)`` summed over its columns (each mean removed), the zero bin
+    dropped, normalized to sum 1: ``(F // 2 + 1,)``."""
+    power = (np.abs(np.fft.rfft(x - x.mean(0), axis=0)) ** 2).sum(1)
+    power[0] = 0.0
+    return power / max(power.sum(), 1e-30)
+
+
+def species_spectrum(name: str, freqs: np.ndarray) -> np.ndarray:
+    """A library species' mean energy ratios over its three axes, interpolated onto ``freqs (B,)``
+    Hz (0 outside its kept bins and at 0 Hz), normalized to sum 1."""
+    motion = load_species_spec(name)[0].motion
+    energy = np.mean([m.energy / m.energy.sum() for m in motion], 0)
+    out = np.interp(freqs, motion[0].freqs_hz, energy, left=0.0, right=0.0)
+    out[freqs <= 0] = 0.0
+    return out / out.sum()
+
+
+def test_tip_spectrum_by_hand():
+    """Two tips, 10 s at 10 fps (bins of 0.1 Hz): one at 0.5 Hz with amplitude 2, one at 1.5 Hz with
+    amplitude 1 → powers 4 : 1 at those bins; a library species' spectrum sums to 1, none at 0 Hz."""
+    t = np.arange(100) / 10.0
+    x = np.stack([2 * np.sin(2 * np.pi * 0.5 * t) + 3.0, np.sin(2 * np.pi * 1.5 * t)], 1)
+    spec = tip_spectrum(x)
+    assert spec[5] == pytest.approx(0.8) and spec[15] == pytest.approx(0.2) and spec.sum() == pytest.approx(1.0)
+    s = species_spectrum("broad", np.fft.rfftfreq(100, 0.1))
+    assert s.sum() == pytest.approx(1.0) and s[0] == 0.0
 
 
 @pytest.mark.slow
@@ -71,15 +93,33 @@ def test_photo_of_a_sample_traces_lifts_and_sways(tmp_path, variant, seed, speci
     p = tree.parents
     lengths = np.linalg.norm(tree.nodes3d[:, p >= 0] - tree.nodes3d[:, p[p >= 0]], axis=2)
     assert np.abs(lengths - lengths[0]).max() < 1e-4 * float(np.ptp(tree.nodes3d[0][:, 2]))
-    # the tips sway at the species' frequencies: the median tip's dominant frequency is one of the
-    # species' axes' dominant frequencies, within one FFT bin
-    model = load_species_spec(species)[0]
+    # the tips sway like the species: the tips' power spectrum (their x motion, summed over tips and
+    # averaged over three sway seeds) against the species' mean energy ratios (its axes' Dirichlet
+    # means, on the same frequency bins): correlation ≥ 0.7, and nearer (L1) to its own species than
+    # to the library's other one. Not "the peak within one FFT bin of the species' dominant": the
+    # species' sway is broadband (broad: 35 % of its energy at 0.67–0.8 Hz, the rest spread over
+    # 0.13–1.5 Hz), so one realization's peak wanders over 0.12–1.0 Hz (8 seeds of the broad photo:
+    # the peak of the summed spectrum within a bin in 4, the median of each tip's peak in 6), and
+    # even 4 seeds' mean spectrum peaks at 0.50 Hz for one draw. Measured on 8 seeds of the broad
+    # photo: every one of the 56 three-seed means nearer to broad than to conifer, correlation ≥ 0.84
     tips = np.setdiff1d(np.arange(len(p)), p)
-    hz = np.median([dominant_hz(tree.nodes3d[:, t, 0], tree.fps) for t in tips])
-    bin_hz = tree.fps / tree.n_frames
-    want = [m.dominant_hz for m in model.motion]
-    print(f"{variant}: tips sway at {hz:.3f} Hz; the species' axes {np.round(want, 3)}; a bin {bin_hz:.3f} Hz")
-    assert min(abs(hz - w) for w in want) <= bin_hz + 1e-9
+    spectra = [tip_spectrum(tree.nodes3d[:, tips, 0])]
+    for seed in (1, 2):
+        code, _, err = run(photo, "--outline", os.path.join(folder, "outline.json"), "--out", tmp_path / f"out{seed}",
+                           "--no-video", "--seconds", "8", "--seed", seed)
+        assert code == 0, err
+        other_tree = load_tree(str(tmp_path / f"out{seed}" / "tree3d.npz"))   # the seed grows the crown, too
+        spectra.append(tip_spectrum(other_tree.nodes3d[:, np.setdiff1d(np.arange(len(other_tree.parents)),
+                                                                        other_tree.parents), 0]))
+    ours = np.mean(spectra, 0)
+    freqs = np.fft.rfftfreq(tree.n_frames, 1.0 / tree.fps)
+    other = "conifer" if species == "broad" else "broad"
+    own_spec, other_spec = species_spectrum(species, freqs), species_spectrum(other, freqs)
+    corr = float(np.corrcoef(ours, own_spec)[0, 1])
+    d_own, d_other = np.abs(ours - own_spec).sum(), np.abs(ours - other_spec).sum()
+    print(f"{variant}: the sway's spectrum against {species}'s: correlation {corr:.2f}, L1 {d_own:.2f} "
+          f"(against {other}'s {d_other:.2f})")
+    assert corr >= 0.7 and d_own < d_other
     assert np.ptp(tree.nodes3d[:, tips, 0], axis=0).mean() > 0.002 * float(np.ptp(tree.nodes3d[0][:, 2]))
 
 
