@@ -49,8 +49,8 @@ def test_reprojection_and_lengths(solved, variant):
     """The 3D motion keeps to the measured 2D motion (issue 35): at every measured node-frame its
     projection lies within 3 % of the height of the tracked position (it was 6 %, and 9 % on
     sparse, while a chain node's whole displacement came from its chain's ends); at most 5 % of the
-    node-frames unmeasured (low confidence, or an edge stretched past its bone); median ≤ 1 %;
-    lengths exact."""
+    node-frames unmeasured (low confidence, or tracked past the reach of the bones to an ancestor
+    or descendant: ``motion.out_of_reach``); median ≤ 1 %; lengths exact."""
     s, fit = solved[variant]["prob"], solved[variant]["prob_fit"]
     assert fit["max"] <= motion.REPROJECTION_BOUND and fit["over"] == 0, fit
     assert fit["unmeasured"] <= 0.05 and s["reproj_median"] <= 0.01, (fit, s)
@@ -118,6 +118,24 @@ def test_deterministic_sphere_meets_line_of_sight():
     m = motion.solve_motion(rest, parents, np.zeros(2, int), tg, motion.MotionParams(solver="deterministic"))
     assert np.linalg.norm(m.nodes[1, 1]) == pytest.approx(5.0, abs=1e-5)
     assert m.nodes[1, 1, 1] == pytest.approx(0.0, abs=1e-5)   # on the sphere's silhouette
+
+
+def test_out_of_reach_by_hand():
+    """A straight chain of three 10 px bones (root 0 → 1 → 2 → 3), tolerance 0.5 px an edge.
+    Frame 1: every edge tracked 0.4 px long: each within its 0.5, the paths within 1.0 and 1.5
+    px: none. Frame 2: the chain bent, every chord shorter than its bones: none. Frame 3: the
+    middle edge 1.2 px long and the tip following node 2: the edge marks both its ends (1, 2),
+    and the tip lies 1.2 px past the 20 px of bones to node 1 (allowed 1.0): the tip too, the root
+    not (1.2 past 30, allowed 1.5 to the tip; 1.2 past 20 to node 2, allowed 1.0: node 2, already
+    marked). Frame 4: the tip's edge alone 0.6 px long: both its ends (2, 3) and nothing above."""
+    rest = np.array([[0, 0, 0], [0, 0, 10], [0, 0, 20], [0, 0, 30]], float)
+    parents = np.array([-1, 0, 1, 2])
+    frames = np.array([[[0, 0], [0, 10.4], [0, 20.8], [0, 31.2]],
+                       [[0, 0], [0, 10], [7.07, 17.07], [14.14, 24.14]],
+                       [[0, 0], [0, 10], [0, 21.2], [0, 31.2]],
+                       [[0, 0], [0, 10], [0, 20], [0, 30.6]]])
+    bad = motion.out_of_reach(rest, parents, frames, 0.5)
+    assert bad.tolist() == [[False] * 4, [False] * 4, [False, True, True, True], [False, False, True, True]]
 
 
 def test_chain_targets_follow_their_ends_by_arc_length():
