@@ -5,6 +5,12 @@ harness of issue 18 (motion that holds in real wind). One table per variant, a r
 - ``2D`` and ``3D`` tip motion: median Pearson correlation of the x displacement of matched tips,
   std ratio ours / true (``amp``), dominant-frequency error (``df`` Hz, from the clip's frame times);
   2D = the moving 2D skeleton, 3D = the solved 3D motion (``build_3d``) in the truth's frame;
+- ``dα95°``: the 95th percentile of the change of branch angles of the built 3D tree (degrees),
+  ``truth`` the truth's and ``rigid`` the truth's without the joints of its thinnest, swinging
+  twigs (tests/motion_metrics.py ``true_bending``);
+- ``fit max``, ``over``, ``unmeas``: how the 3D motion keeps to the measured 2D motion
+  (``meta["motion_fit"]``): the largest reprojection at a measured node-frame (% of the height), the
+  measured node-frames past the 3 % bound, the unmeasured share;
 - ``tracks@10/30/60/last``: live tracks at that frame / live tracks at frame 1 (``result.tracks.valid``);
 - ``cam px``: the largest error of the estimated camera motion at the frame centre, i.e. on a tripod
   clip the largest translation the tracker invented;
@@ -48,7 +54,7 @@ from tree_from_video.core.reconstruct.node_motion import LOW_CONFIDENCE  # noqa:
 from tree_from_video.sample_videos import synth_tree as st  # noqa: E402
 
 from groundtruth import score  # noqa: E402
-from motion_metrics import flow_reference, flow_reference_correlation, tip_motion, tip_motion_3d  # noqa: E402
+from motion_metrics import angle_changes, flow_reference, flow_reference_correlation, tip_motion, tip_motion_3d, true_bending  # noqa: E402
 from samples import load_truth, plain_settings, video_path  # noqa: E402
 
 SURVIVAL_FRAMES = (10, 30, 60)
@@ -146,6 +152,9 @@ def measure(variant: str, seed: int, folder: str, frames: int | None = None, tra
     scale = float(tree.meta["metres_per_px"])
     out["tip3d"] = tip_motion_3d(tree.nodes3d.astype(np.float64) / scale, tree.parents,
                                  np.asarray(tree.meta["base_px"], float), truth)
+    ours_da = np.degrees(angle_changes(tree.nodes3d.astype(np.float64), tree.parents))
+    out["bend"] = {"ours": float(np.percentile(ours_da, 95)), **true_bending(truth, int(tree.nodes3d.shape[0]))}
+    out["fit"] = tree.meta.get("motion_fit")
     out["survival"] = survival(res.tracks.valid)
     size = (int(res.outline.mask.shape[1]), int(res.outline.mask.shape[0]))
     out["tripod"] = bool(np.abs(truth["camera_offset"]).max() == 0)
@@ -172,7 +181,8 @@ def measure(variant: str, seed: int, folder: str, frames: int | None = None, tra
 
 
 HEADER = (f"{'seed':>9} {'ch1/H':>6} {'cover':>5} | {'2D corr':>7} {'amp':>5} {'df Hz':>5} | {'3D corr':>7} {'amp':>5} "
-          f"{'df Hz':>5} | {'tracks@10':>9} {'@30':>4} {'@60':>4} {'@last':>5} | {'cam px':>6} {'barely':>6} | "
+          f"{'df Hz':>5} | {'dα95°':>5} {'truth':>5} {'rigid':>5} | {'fit max':>7} {'over':>4} {'unmeas':>6} | "
+          f"{'tracks@10':>9} {'@30':>4} {'@60':>4} {'@last':>5} | {'cam px':>6} {'barely':>6} | "
           f"{'ref':>5} {'refamp':>6} {'same':>5} {'ref@true':>8} | {'conf':>4} {'>=90%':>5} | {'s':>5}")
 
 
@@ -188,6 +198,8 @@ def row(r: dict) -> str:
     return (f"{r['seed']:>4} {r['split']:<4} {_f(100 * r['chamfer1'], '5.2f')}% {_f(r['coverage'], '5.2f')} | "
             f"{_f(r['tip2d']['corr'], '7.2f')} {_f(r['tip2d']['amp'], '5.2f')} {_f(r['tip2d']['freq_err'], '5.2f')} | "
             f"{_f(r['tip3d']['corr'], '7.2f')} {_f(r['tip3d']['amp'], '5.2f')} {_f(r['tip3d']['freq_err'], '5.2f')} | "
+            f"{_f(r['bend']['ours'], '5.1f')} {_f(r['bend']['all'], '5.1f')} {_f(r['bend']['rigid'], '5.1f')} | "
+            f"{_f(100 * r['fit']['max'], '6.2f')}% {r['fit']['over']:>4} {_f(100 * r['fit']['unmeasured'], '5.1f')}% | "
             f"{sv[0]:>9} {sv[1]:>4} {sv[2]:>4} {sv[3]:>5} | {cam:>6} {'yes' if r['barely_moves'] else 'no':>6} | "
             f"{_f(r['ref']['corr'], '5.2f')} {_f(r['ref']['amp'], '6.2f')} {_f(r['ref']['same_nodes_truth_corr'], '5.2f')} "
             f"{_f(r['ref']['truth_corr'], '8.2f')} | {_f(r['confident']['worst_frame'], '4.2f')} "
