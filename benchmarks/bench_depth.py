@@ -9,6 +9,7 @@ Each clip is generated with 24 frames (the lift reads frame 1 and the traced ske
 is not part of it), traced once, then lifted both ways.
 
     .venv/bin/python benchmarks/bench_depth.py [--work DIR] [--variants broad,conifer,...] [--seeds dev,held_out]
+    .venv/bin/python benchmarks/bench_depth.py --forms 3 --oracle     # + what signs and magnitudes cost
 """
 from __future__ import annotations
 
@@ -59,6 +60,9 @@ def main() -> None:
     ap.add_argument("--forms", type=int, default=0,
                     help="instead: this many trees of every form of the depth network's data generator "
                          "(scripts/depth_data.py), seeds it never trained on")
+    ap.add_argument("--oracle", action="store_true",
+                    help="also print what the learned lift loses to its depth signs and magnitudes "
+                         "(tests/groundtruth.py depth_oracles)")
     args = ap.parse_args()
     load_package()
     sys.path.insert(0, os.path.join(ROOT, "tests"))
@@ -67,12 +71,13 @@ def main() -> None:
     from tree_from_video.core.reconstruct.lift import LiftParams, lift
     from tree_from_video.sample_videos import synth_tree
 
-    from groundtruth import lift_scores
+    from groundtruth import depth_oracles, lift_scores
     from samples import generate, load_truth, plain_settings
 
     net = ld.shared_net()
     fit = net.fit
     rows = []
+    oracles: list[dict] = []
     for v, kind, seed, folder in _clips(args, generate, synth_tree):
         if True:
             if True:
@@ -92,6 +97,9 @@ def main() -> None:
                     L = lift(sk, res.outline, pr, **kw)
                     r = lift_scores(L.nodes, sk.parents, sk.nodes2d[0, 0], truth)
                     out[name] = r["chamfer"] / r["flat_truth"]
+                    if name == "learned" and args.oracle:
+                        oracles.append(depth_oracles(L.nodes, sk.parents, sk.nodes2d[0, 0], truth))
+                        print("    " + "  ".join(f"{k} {x:.2f}" for k, x in oracles[-1].items()))
                 flat = L.nodes.copy()
                 flat[:, 1] = 0.0
                 r = lift_scores(flat, sk.parents, sk.nodes2d[0, 0], truth)
@@ -113,6 +121,9 @@ def main() -> None:
         own = np.array([r[4] / r[5] for r in sel])
         print(f"| **mean** | {kind} | **{np.mean([r[3] for r in sel]):.2f}** | **{np.mean([r[4] for r in sel]):.2f}** "
               f"| {np.mean([r[5] for r in sel]):.2f} | {own.mean():.2f} ({own.max():.2f}) |")
+    if oracles:
+        print("\nthe learned lift against its oracles (mean over the trees; chamfer / flat truth's): "
+              + ", ".join(f"{k} {np.mean([o[k] for o in oracles]):.2f}" for k in oracles[0]))
 
 
 if __name__ == "__main__":

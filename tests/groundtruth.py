@@ -146,6 +146,36 @@ def lift_in_truth_frame(nodes_plane: np.ndarray, base_px: np.ndarray, truth: dic
     return out
 
 
+def depth_oracles(nodes_plane: np.ndarray, parents: np.ndarray, base_px: np.ndarray, truth: dict) -> dict:
+    """What a lift's depths ``nodes_plane[:, 1]`` (px, plane frame) lose to their signs and to their
+    magnitudes: each node matched to the true node nearest it on (x, z) in frame 1, its true depth
+    from the true base (the global sign that agrees better with ours), and the 3D chamfer over the
+    flat truth's (:func:`lift_scores`) with the true magnitudes on our signs (``true_magnitude``),
+    our magnitudes on the true signs (``true_sign``) and the true depths (``true_depth``: what the
+    2D trace alone allows); ``sign_agreement`` over the nodes farther than 2 % of the height from
+    the trunk's plane."""
+    from scipy.spatial import cKDTree
+    h = float(truth["height_px"])
+    tn = truth["nodes3d"][0].astype(np.float64)
+    ours = lift_in_truth_frame(nodes_plane, base_px, truth)
+    _, j = cKDTree(tn[:, [0, 2]]).query(ours[:, [0, 2]])
+    oy = np.asarray(nodes_plane, np.float64)[:, 1]
+    ty = tn[j, 1] - tn[0, 1]
+    if np.abs(oy + ty).sum() < np.abs(oy - ty).sum():
+        ty = -ty
+    far = np.abs(ty) > 0.02 * h
+
+    def ratio(y: np.ndarray) -> float:
+        x = np.array(nodes_plane, np.float64)
+        x[:, 1] = y
+        r = lift_scores(x, parents, base_px, truth)
+        return r["chamfer"] / r["flat_truth"]
+    return {"sign_agreement": float((np.sign(oy) == np.sign(ty))[far].mean()) if far.any() else float("nan"),
+            "true_magnitude": ratio(np.abs(ty) * np.where(oy >= 0, 1.0, -1.0)),
+            "true_sign": ratio(np.abs(oy) * np.where(ty >= 0, 1.0, -1.0)),
+            "true_depth": ratio(ty)}
+
+
 def lift_scores(nodes_plane: np.ndarray, parents: np.ndarray, base_px: np.ndarray, truth: dict) -> dict:
     """3D chamfer of a lifted frame-1 skeleton vs the true tree (best of both depth signs), the true
     tree flattened to depth 0 as the baseline, and depth/width extents."""
