@@ -152,8 +152,8 @@ def solve_motion(rest: np.ndarray, parents: np.ndarray, level: np.ndarray, targe
 #: from its measured 2D position at a measured node-frame (issue 35); farther, the run warns
 REPROJECTION_BOUND = 0.03
 #: a node-frame is unmeasured when its 2D distance to an ancestor (its parent first), or a
-#: descendant's to it, is this much (share of the height) longer than the bones between them: no
-#: rigid branch reaches it, the tracker stretched it
+#: descendant's to it, is longer than the bones between them by this much (share of the height)
+#: per edge between them: no rigid branch reaches it, the tracker stretched it (:func:`out_of_reach`)
 STRETCH_TOLERANCE = 0.005
 
 
