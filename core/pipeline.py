@@ -263,7 +263,8 @@ def build_3d(res: Result, s: Settings | None = None, name: str = "Tree",
     lifted = lift(sk, res.outline, lift_params, parts["lift"], depth=depth, fit=fit_err)
     base = sk.nodes2d[0, 0].astype(float)
     targets = image_to_plane(sk.nodes2d.astype(float), base)[..., [0, 2]]
-    mo = solve_motion(lifted.nodes, sk.parents, sk.level, targets, s.motion, parts["motion"], sk.confidence)
+    mo = solve_motion(lifted.nodes, sk.parents, sk.level, targets, s.motion.for_form(lift_params.conifer),
+                      parts["motion"], sk.confidence)
     nodes, times = mo.nodes, uneven_times(sk.times, sk.fps)
     followed = None if photo is not None else motion_fit(mo.nodes, sk.parents, targets, sk.confidence).summary()
     fill = None

@@ -25,7 +25,8 @@ def solved(runs):
         tgt = image_to_plane(sk.nodes2d.astype(np.float64), base)[..., [0, 2]]
         entry = {}
         for key, solver in (("prob", "probabilistic"), ("det", "deterministic")):
-            m = motion.solve_motion(L.nodes, sk.parents, sk.level, tgt, motion.MotionParams(solver=solver))
+            prm = motion.MotionParams(solver=solver).for_form(v == "conifer")
+            m = motion.solve_motion(L.nodes, sk.parents, sk.level, tgt, prm)
             entry[key] = motion_scores(m.nodes.astype(np.float64), sk.parents, tgt, base, runs[v]["truth"])
             entry[key + "_motion"] = m
             entry[key + "_fit"] = motion.motion_fit(m.nodes, sk.parents, tgt, sk.confidence).summary()

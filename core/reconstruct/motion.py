@@ -33,7 +33,7 @@ at the trunk base).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -59,10 +59,24 @@ class MotionParams:
     depth_sigma: float = 0.01         # per-frame depth step of subtree nodes (share of the height):
                                       # what the camera cannot see should not swing freely
     rest_sigma: float = 0.15          # radians: weak pull of the accumulated rotation back to rest
+    rest_sigma_conifer: float = 0.5   # … for a conifer (:meth:`for_form`)
     prior_sigma: float = 0.5          # weak Gaussian on ω (fixes the free twist), radians
     iterations: int = 2               # Gauss–Newton steps a frame at most …
     step_tolerance: float = 1e-4      # … stopping once a step moved every node to within this
                                       # (share of the height) of where its linearization said
+
+
+    def for_form(self, conifer: bool) -> MotionParams:
+        """These parameters for a tree of that form: a conifer's pull back to rest is
+        ``rest_sigma_conifer``. Its whorl branches swing about one stiff trunk, and the pull at
+        0.15 rad held them at 0.3–0.5× the truth's bending (95th percentile of the change of
+        branch angles without the truth's swinging twigs, ``benchmarks/motion_truth.py``); at
+        0.5 rad every conifer clip measured moved toward its truth and none past it (held-out
+        conifer storm 2.7 → 4.2° and 2.9 → 4.5° for 6.3 and 5.9°, tiny 2.7 → 3.1° and 2.0 → 2.5°
+        for 8.8 and 8.2°, conifer 1.3 → 1.8° and 1.3 → 1.7° for 2.3 and 2.2°; tip correlation
+        the same). On broadleaves the looser pull followed the tracks' noise past the truth
+        (gusts 3.2 → 4.5° for 2.6°, palm 3.0 → 4.0° for 2.8°), so they keep ``rest_sigma``."""
+        return replace(self, rest_sigma=self.rest_sigma_conifer) if conifer else self
 
 
 @dataclass
