@@ -7,10 +7,16 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 
+def joints(parents: np.ndarray) -> np.ndarray:
+    """``(E,)`` the nodes whose edge has a parent edge (a parent that is not the root): the joints
+    :func:`angle_changes` reports, in its column order."""
+    return np.flatnonzero((parents >= 0) & (parents[np.maximum(parents, 0)] >= 0))
+
+
 def angle_changes(nodes: np.ndarray, parents: np.ndarray) -> np.ndarray:
     """``(F, E)`` |α(t) − α(1)| radians for every edge that has a parent edge (α = angle between
-    the edge and its parent edge), nodes ``(F, N, 3)``."""
-    c = np.flatnonzero((parents >= 0) & (parents[np.maximum(parents, 0)] >= 0))
+    the edge and its parent edge, the :func:`joints`), nodes ``(F, N, 3)``."""
+    c = joints(parents)
     p = parents[c]
     g = parents[p]
     a = nodes[:, c] - nodes[:, p]
@@ -29,7 +35,7 @@ def true_bending(truth: dict, frames: int) -> dict:
     with ``rigid`` where the 2D skeleton does not resolve such twigs."""
     nodes, parents = truth["nodes3d"][:frames].astype(np.float64), truth["parents"]
     da = np.degrees(angle_changes(nodes, parents))
-    c = np.flatnonzero((parents >= 0) & (parents[np.maximum(parents, 0)] >= 0))
+    c = joints(parents)
     swing = truth.get("swing_deg")
     swinging = np.zeros(len(c), bool) if swing is None else np.asarray(swing)[truth["branch_id"][c]] > 0
     rigid = da[:, ~swinging]

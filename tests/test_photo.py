@@ -15,6 +15,7 @@ from tree_from_video.core.generate.batch import load_species_spec
 from tree_from_video.core.tree3d import load_tree
 
 from groundtruth import chamfer_coverage
+from motion_metrics import joints, tips
 from samples import ROOT, committed, generate, load_truth
 
 BATCH = os.path.join(ROOT, "batch.py")
@@ -57,7 +58,7 @@ def joint_peak_hz(nodes: np.ndarray, parents: np.ndarray, fps: float) -> float:
     energy ratios per node, so their mean over a tree's hundreds of joints peaks where the
     species' mean energy does; a tip's position sums a few large bones' rotations and its peak
     wanders with the draw."""
-    c = np.flatnonzero((parents >= 0) & (parents[np.maximum(parents, 0)] >= 0))
+    c = joints(parents)
     a = nodes[:, c] - nodes[:, parents[c]]
     b = nodes[:, parents[c]] - nodes[:, parents[parents[c]]]
     v = a / np.linalg.norm(a, axis=-1, keepdims=True) - b / np.linalg.norm(b, axis=-1, keepdims=True)
@@ -136,16 +137,14 @@ def test_photo_of_a_sample_traces_lifts_and_sways(tmp_path, variant, seed, speci
     want = [m.dominant_hz for m in model.motion]
     bin_hz = tree.fps / tree.n_frames
     trees = [tree]
-    tips = np.setdiff1d(np.arange(len(p)), p)
-    spectra = [tip_spectrum(tree.nodes3d[:, tips, 0])]
+    spectra = [tip_spectrum(tree.nodes3d[:, tips(p), 0])]
     for seed in (1, 2):
         code, _, err = run(photo, "--outline", os.path.join(folder, "outline.json"), "--out", tmp_path / f"out{seed}",
                            "--no-video", "--seconds", "8", "--seed", seed)
         assert code == 0, err
         other_tree = load_tree(str(tmp_path / f"out{seed}" / "tree3d.npz"))   # the seed grows the crown, too
         trees.append(other_tree)
-        spectra.append(tip_spectrum(other_tree.nodes3d[:, np.setdiff1d(np.arange(len(other_tree.parents)),
-                                                                        other_tree.parents), 0]))
+        spectra.append(tip_spectrum(other_tree.nodes3d[:, tips(other_tree.parents), 0]))
     ours = np.mean(spectra, 0)
     freqs = np.fft.rfftfreq(tree.n_frames, 1.0 / tree.fps)
     other = "conifer" if species == "broad" else "broad"
@@ -159,7 +158,7 @@ def test_photo_of_a_sample_traces_lifts_and_sways(tmp_path, variant, seed, speci
     print(f"{variant}: the joints peak at {np.round(peaks, 3)} Hz; the species' axes {np.round(want, 3)}; "
           f"a bin {bin_hz:.3f} Hz")
     assert all(min(abs(hz - w) for w in want) <= bin_hz + 1e-9 for hz in peaks)
-    assert np.ptp(tree.nodes3d[:, tips, 0], axis=0).mean() > 0.002 * float(np.ptp(tree.nodes3d[0][:, 2]))
+    assert np.ptp(tree.nodes3d[:, tips(p), 0], axis=0).mean() > 0.002 * float(np.ptp(tree.nodes3d[0][:, 2]))
 
 
 def _write(path, img):

@@ -65,7 +65,6 @@ class MotionParams:
     step_tolerance: float = 1e-4      # … stopping once a step moved every node to within this
                                       # (share of the height) of where its linearization said
 
-
     def for_form(self, conifer: bool) -> MotionParams:
         """These parameters for a tree of that form: a conifer's pull back to rest is
         ``rest_sigma_conifer``. Its whorl branches swing about one stiff trunk, and the pull at
