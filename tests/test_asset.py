@@ -98,6 +98,34 @@ def test_roles_mark_trunk_limbs_twigs_and_leaf_clusters(grown):
     assert counts["leaf cluster"] == grown.leaves.count and counts["twig"] == grown.n_nodes - first
 
 
+def test_the_leaf_tint_keeps_the_foliages_hue_by_hand():
+    """leaf_tint = the clusters' median × k, k the 90th percentile of each cluster's largest
+    channel ratio to the median (capped at 1 in the brightest channel): 18 clusters at 0.6–1.5 ×
+    (0.4, 0.5, 0.25) and two of sky (0.6, 0.7, 0.9)."""
+    from types import SimpleNamespace
+
+    from tree_from_video.core.asset.look import leaf_colour, leaf_tint
+    base = np.array([0.4, 0.5, 0.25])
+    colour = np.vstack([base * np.linspace(0.6, 1.5, 18)[:, None], [[0.6, 0.7, 0.9]] * 2])
+    leaves = SimpleNamespace(colour=colour)
+    median = leaf_colour(leaves)
+    np.testing.assert_allclose(median / median.sum(), base / base.sum())     # the sky is not the median
+    tint = leaf_tint(leaves)
+    # 90th percentile of 20 ratios (linear): 0.1 of the way from the 18th to the 19th sorted; the
+    # 18th is the brightest green (1.5 / its median scale), the 19th a sky
+    ratio = np.sort((colour / median).max(axis=1))
+    np.testing.assert_allclose(tint, median * (ratio[17] + 0.1 * (ratio[18] - ratio[17])))
+    np.testing.assert_allclose(tint / tint.sum(), base / base.sum())          # the foliage's hue
+    assert ((colour <= tint + 1e-12).all(axis=1)).mean() == 0.9
+    # the per-channel 90th percentile it replaces: the sky's blue greys it (HSV saturation 0.5 -> 0.39)
+    old = np.percentile(colour, 90, axis=0)
+    sat = lambda c: 1 - c.min() / c.max()                                     # noqa: E731
+    assert sat(tint) == pytest.approx(0.5) and sat(old) < 0.4
+    # a bright crown: capped at 1 in its brightest channel, never below the median
+    bright = SimpleNamespace(colour=np.vstack([[0.8, 0.9, 0.5]] * 5 + [[0.95, 1.0, 0.9]] * 6))
+    assert leaf_tint(bright).max() == pytest.approx(1.0) and (leaf_tint(bright) >= leaf_colour(bright)).all()
+
+
 def test_the_look_carries_the_recorded_settings_and_the_defaults(grown):
     look = tree_asset(grown).look
     assert (look.mesh.curliness, look.mesh.bark) == (MeshParams().curliness, MeshParams().bark)

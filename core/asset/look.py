@@ -63,11 +63,17 @@ def leaf_colour(leaves) -> np.ndarray:
 
 
 def leaf_tint(leaves) -> np.ndarray:
-    """``(3,)`` sRGB colour of the procedural leaf texture: the 90th percentile of the clusters'
-    video colours per channel. The leaf mesh's colour attribute holds each cluster's colour divided
-    by it, so texture × colour = the video's colour, while a viewer that ignores vertex colours
-    (solid view, some engines) still shows leaf-coloured leaves."""
-    return np.maximum(np.percentile(np.asarray(leaves.colour, np.float64), 90, axis=0), 1e-3)
+    """``(3,)`` sRGB colour of the procedural leaf texture: the foliage's median colour
+    (:func:`leaf_colour`) brightened until 90 % of the clusters' colours lie at or below it in every
+    channel (at most to 1 in its brightest channel). The leaf mesh's colour attribute holds each
+    cluster's colour divided by it, so texture × colour = the video's colour, while a viewer that
+    ignores vertex colours (Workbench's texture view, some engines) shows the foliage's hue and
+    saturation. (A per-channel 90th percentile mixed the bright clusters' highlights and sky into
+    every channel: a real cedar's yellow-green crown, HSV saturation 0.40, got a grey tint of 0.16.)"""
+    colour = np.asarray(leaves.colour, np.float64)
+    median = np.maximum(leaf_colour(leaves), 1e-3)
+    k = float(np.percentile((colour / median).max(axis=1), 90))           # the brightening
+    return median * float(np.clip(k, 1.0, 1.0 / median.max()))
 
 
 def tree_look(tree, sides: int = 8, curliness: float | None = None, bark: str | None = None,
