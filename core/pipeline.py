@@ -254,6 +254,8 @@ def build_3d(res: Result, s: Settings | None = None, name: str = "Tree",
             if radius_px is not None:               # onto the branches' centre lines, every frame
                 sk = replace(sk, nodes2d=(sk.nodes2d + vf.shift_px[None]).astype(np.float32))
     lift_params = s.lift if s.lift.conifer or res.form != "conifer" else replace(s.lift, conifer=True)
+    if photo is not None:               # no measured motion to keep to: the leader stays in the plane
+        lift_params = replace(lift_params, leader=True)
     depth = fit_err = None
     if s.depth == "learned" and frame is not None:      # frame 1's depths from the network
         net = shared_net()

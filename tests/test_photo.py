@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from tree_from_video.core.generate.batch import load_species_spec
+from tree_from_video.core.reconstruct.lift import leader_nodes
 from tree_from_video.core.tree3d import load_tree
 
 from groundtruth import chamfer_coverage
@@ -121,6 +122,16 @@ def test_photo_of_a_sample_traces_lifts_and_sways(tmp_path, variant, seed, speci
     p = tree.parents
     lengths = np.linalg.norm(tree.nodes3d[:, p >= 0] - tree.nodes3d[:, p[p >= 0]], axis=2)
     assert np.abs(lengths - lengths[0]).max() < 1e-4 * float(np.ptp(tree.nodes3d[0][:, 2]))
+    # a photo's central leader (at every split the child reaching highest in the photo) stays in the
+    # trunk's plane (LiftParams.leader): its mean pose over the sway (which swings about the rest
+    # pose) within 0.5 % of the height; the traced nodes come first in the tree, the grown crown after
+    n = len(parents)
+    assert np.array_equal(tree.parents[:n], parents)
+    lead = leader_nodes(parents, np.stack([nodes2d[0, :, 0], 0 * nodes2d[0, :, 0], -nodes2d[0, :, 1]], 1))
+    mean = tree.nodes3d[:, :n].astype(np.float64).mean(0)
+    off = float(np.abs(mean[lead, 1] - mean[0, 1]).max()) / float(np.ptp(tree.nodes3d[0][:, 2]))
+    print(f"{variant}: the leader's {lead.sum()} nodes lie within {off:.2%} of the height of the trunk's plane")
+    assert lead.sum() >= 3 and off < 0.005
     # the tips sway like the species: the tips' power spectrum (their x motion, summed over tips and
     # averaged over three sway seeds) against the species' mean energy ratios (its axes' Dirichlet
     # means, on the same frequency bins): correlation ≥ 0.7, and nearer (L1) to its own species than
