@@ -13,7 +13,7 @@ import pytest
 
 from tree_from_video.core.generate.batch import load_species_spec
 from tree_from_video.core.reconstruct.lift import leader_nodes
-from tree_from_video.core.tree3d import load_tree
+from tree_from_video.core.tree3d import image_to_plane, load_tree
 
 from groundtruth import chamfer_coverage
 from motion_metrics import joints, tips
@@ -127,7 +127,7 @@ def test_photo_of_a_sample_traces_lifts_and_sways(tmp_path, variant, seed, speci
     # pose) within 0.5 % of the height; the traced nodes come first in the tree, the grown crown after
     n = len(parents)
     assert np.array_equal(tree.parents[:n], parents)
-    lead = leader_nodes(parents, np.stack([nodes2d[0, :, 0], 0 * nodes2d[0, :, 0], -nodes2d[0, :, 1]], 1))
+    lead = leader_nodes(parents, image_to_plane(nodes2d[0].astype(np.float64), nodes2d[0, 0]))
     mean = tree.nodes3d[:, :n].astype(np.float64).mean(0)
     off = float(np.abs(mean[lead, 1] - mean[0, 1]).max()) / float(np.ptp(tree.nodes3d[0][:, 2]))
     print(f"{variant}: the leader's {lead.sum()} nodes lie within {off:.2%} of the height of the trunk's plane")
