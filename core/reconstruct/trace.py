@@ -48,7 +48,7 @@ from .skeleton2d import (
     binarize,
     crown_scale,
 )
-from .stems import hidden_trunk, leader_curve, leader_tip
+from .stems import hidden_trunk, leader_curve, leader_tip, straighten_stem
 from .tracks import Tracks
 
 
@@ -570,6 +570,8 @@ def traced_skeleton(tracks: Tracks, hier: Hierarchy, outline: Outline, maps: App
                                           params.spacing * size, None if hidden is None else hidden[2])
     report(progress, "skeleton", 0.7)
     parents, pos = binarize(parents, pos)
+    if palm is None and hidden is None:     # a wide trunk measured on frame 1: up its middle, straight
+        parents, pos = straighten_stem(parents, pos, trunk_width * f, mask, trunk_ridge)
     pos = pos / f
     fixed = np.zeros(len(parents), bool)
     fixed[0] = True
