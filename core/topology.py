@@ -84,6 +84,18 @@ def node_depths(parents: np.ndarray) -> np.ndarray:
     return d
 
 
+def subtree_sizes(parents: np.ndarray) -> np.ndarray:
+    """``(N,)`` nodes in each node's subtree (itself included): the deepest level first, each
+    level's counts added to its parents' at once."""
+    parents = np.asarray(parents)
+    size = np.ones(len(parents), np.int64)
+    depth = node_depths(parents)
+    for d in range(int(depth.max(initial=0)), 0, -1):
+        at = np.flatnonzero(depth == d)
+        np.add.at(size, parents[at], size[at])
+    return size
+
+
 def subtree_masks(parents: np.ndarray, roots: np.ndarray) -> np.ndarray:
     """``(R, N)`` bool: node n is in the subtree of ``roots[r]`` (itself included)."""
     parents = np.asarray(parents)

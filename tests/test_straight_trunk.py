@@ -73,3 +73,15 @@ def test_no_trunk_width_no_change():
     p2, q = straighten_stem(parents, pos, float("nan"), mask, ridge)
     assert np.array_equal(p2, parents) and np.array_equal(q, pos)
     assert list(main_stem(parents, pos)) == list(range(11))       # up to the bend past 45°
+
+
+def test_subtree_sizes_by_hand():
+    from tree_from_video.core.topology import subtree_sizes
+    #       0
+    #      / \
+    #     1   2
+    #    / \    \
+    #   3   4    5 - 6
+    parents = np.array([-1, 0, 0, 1, 1, 2, 5])
+    assert subtree_sizes(parents).tolist() == [7, 3, 3, 1, 1, 2, 1]
+    assert subtree_sizes(np.array([-1])).tolist() == [1]

@@ -19,7 +19,7 @@ import pytest
 from tree_from_video.core import pipeline
 from tree_from_video.core.generate.photo import PhotoMotion
 from tree_from_video.core.reconstruct.skeleton_io import load_skeleton, save_skeleton
-from tree_from_video.core.topology import children_lists, topological_order
+from tree_from_video.core.topology import children_lists, subtree_sizes
 
 from samples import plain_settings
 
@@ -83,10 +83,7 @@ def main_stem(parents: np.ndarray, xy: np.ndarray, below: float) -> np.ndarray:
     """``(K, 2)`` the nodes from the root up the child with the most nodes under it, until the first
     above row ``below``."""
     kids = children_lists(parents)
-    size = np.ones(len(parents))
-    for n in topological_order(parents)[::-1]:          # children before their parents
-        if parents[n] >= 0:
-            size[parents[n]] += size[n]
+    size = subtree_sizes(parents)
     out, n = [0], 0
     while kids[n] and xy[n, 1] > below:
         n = max(kids[n], key=lambda c: size[c])

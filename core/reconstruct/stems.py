@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..topology import children_lists, subtree_masks, topological_order
+from ..topology import children_lists, subtree_masks, subtree_sizes
 
 
 def hidden_trunk(mask: np.ndarray, base_width: float, share: float,
@@ -76,10 +76,7 @@ def main_stem(parents: np.ndarray, pos: np.ndarray, max_lean_deg: float = 45.0) 
     edge rises within ``max_lean_deg`` of the vertical (``pos (N, 2)`` image px, y down): the
     trunk and the leader it continues into."""
     kids = children_lists(parents)
-    size = np.ones(len(parents))
-    for n in topological_order(parents)[::-1]:          # children before their parents
-        if parents[n] >= 0:
-            size[parents[n]] += size[n]
+    size = subtree_sizes(parents)
     out, n = [0], 0
     tan = np.tan(np.radians(max_lean_deg))
     while kids[n]:
