@@ -96,6 +96,17 @@ def subtree_sizes(parents: np.ndarray) -> np.ndarray:
     return size
 
 
+def without_nodes(parents: np.ndarray, drop: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The tree less the nodes ``drop (N,)`` bool (whole subtrees: no kept node may hang from a
+    dropped one). Returns ``keep (K,)`` the old indices of the kept nodes in their order, their
+    ``parents (K,)`` re-indexed, and ``index (N,)`` each old node's new index (-1: dropped)."""
+    parents = np.asarray(parents, np.int64)
+    keep = np.flatnonzero(~np.asarray(drop, bool))
+    index = -np.ones(len(parents), np.int64)
+    index[keep] = np.arange(len(keep))
+    return keep, np.where(parents[keep] >= 0, index[np.maximum(parents[keep], 0)], -1), index
+
+
 def subtree_masks(parents: np.ndarray, roots: np.ndarray) -> np.ndarray:
     """``(R, N)`` bool: node n is in the subtree of ``roots[r]`` (itself included)."""
     parents = np.asarray(parents)

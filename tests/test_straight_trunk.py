@@ -85,3 +85,11 @@ def test_subtree_sizes_by_hand():
     parents = np.array([-1, 0, 0, 1, 1, 2, 5])
     assert subtree_sizes(parents).tolist() == [7, 3, 3, 1, 1, 2, 1]
     assert subtree_sizes(np.array([-1])).tolist() == [1]
+
+
+def test_without_nodes_reindexes_the_kept_tree():
+    from tree_from_video.core.topology import without_nodes
+    parents = np.array([-1, 0, 0, 1, 1, 2, 5])
+    keep, par, index = without_nodes(parents, np.array([0, 1, 0, 1, 1, 0, 0], bool))   # node 1's subtree
+    assert keep.tolist() == [0, 2, 5, 6] and par.tolist() == [-1, 0, 1, 2]
+    assert index.tolist() == [0, -1, 1, -1, -1, 2, 3]

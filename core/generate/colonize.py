@@ -25,6 +25,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
+from ..topology import without_nodes
+
 
 @dataclass
 class Colonized:
@@ -119,8 +121,5 @@ def prune_stubs(parents: np.ndarray, pos: np.ndarray, min_len: float) -> tuple[n
             v = int(parents[v])
         if v >= 0 and kids[v] >= 2 and length < min_len:
             drop[chain] = True
-    keep = np.flatnonzero(~drop)
-    index = -np.ones(n, np.int64)
-    index[keep] = np.arange(len(keep))
-    newp = np.where(parents[keep] >= 0, index[np.maximum(parents[keep], 0)], -1)
+    keep, newp, _ = without_nodes(parents, drop)
     return newp, pos[keep]

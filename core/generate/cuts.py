@@ -37,7 +37,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..rotations import quat_to_matrix, rodrigues, swing
-from ..topology import subtree, topological_order
+from ..topology import subtree, subtree_sizes, topological_order, without_nodes
 from ..tree_cut import UP, TreeCut, bone_lengths
 
 #: rolls ψ tried about the parent bone (evenly over a turn)
@@ -79,15 +79,6 @@ def carriers(parents: np.ndarray, marked: np.ndarray) -> np.ndarray:
     for n in topological_order(parents)[::-1]:          # leaves first
         if out[n] and parents[n] >= 0:
             out[parents[n]] = True
-    return out
-
-
-def carried(parents: np.ndarray) -> np.ndarray:
-    """``(N,)`` the number of nodes each node carries (itself and all below it)."""
-    out = np.ones(len(parents))
-    for n in topological_order(parents)[::-1]:          # leaves first
-        if parents[n] >= 0:
-            out[parents[n]] += out[n]
     return out
 
 
@@ -176,7 +167,7 @@ def place_cut(parents: np.ndarray, rest: np.ndarray, radius: np.ndarray, cut: Tr
     along = (head[:, None] + t[None, :, None] * (tail - head)[:, None]).reshape(-1, 3)
     along = along[np.linalg.norm(along, axis=1) > clear]                  # ... off its base
     kd = cKDTree(rest)                                                     # earlier cuts count too
-    size = np.append(carried(parents), 0.0) / N                          # share of the tree each node carries
+    size = np.append(subtree_sizes(parents), 0.0) / N                          # share of the tree each node carries
     cand = _candidates(parents, radius, frozen, float(cut.radius[0]), None if at is None else np.asarray(at, float), rest)
     psi = 2.0 * np.pi * np.arange(ROLLS) / ROLLS
     best = None
@@ -214,10 +205,7 @@ def place_cut(parents: np.ndarray, rest: np.ndarray, radius: np.ndarray, cut: Tr
     near = np.where(at_base, segment_distance(rest[child], ca, cb) < clear, near)
     off = subtree(parents, child[near]) & ~keep_safe
     stumps = np.unique(parents[child[near]])
-    keep = np.flatnonzero(~off)
-    index = -np.ones(N, np.int64)
-    index[keep] = np.arange(len(keep))
-    new_par = np.where(parents[keep] >= 0, index[np.maximum(parents[keep], 0)], -1)
+    keep, new_par, index = without_nodes(parents, off)
     M = len(cut.parents)
     cut_par = np.where(cut.parents[1:] == 0, index[A], len(keep) + cut.parents[1:] - 1)
     par = np.concatenate([new_par, cut_par]).astype(np.int64)

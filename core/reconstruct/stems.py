@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..topology import children_lists, subtree_masks, subtree_sizes
+from ..topology import children_lists, subtree_masks, subtree_sizes, without_nodes
 
 
 def hidden_trunk(mask: np.ndarray, base_width: float, share: float,
@@ -182,10 +182,6 @@ def straighten_stem(parents: np.ndarray, pos: np.ndarray, width: float, mask: np
         subs = subtree_masks(parents, starts)                                       # (S, N)
         drop = subs[(subs <= inside[None]).all(1)].any(0)
         if drop.any():
-            keep = np.flatnonzero(~drop)
-            new = np.full(len(parents), -1)
-            new[keep] = np.arange(len(keep))
-            par = parents[keep]
-            parents = np.where(par >= 0, new[np.maximum(par, 0)], -1)
+            keep, parents, _ = without_nodes(parents, drop)
             out = out[keep]
     return parents, out
