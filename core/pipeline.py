@@ -338,7 +338,9 @@ def grown_skeleton(sk: Skeleton2D, fill: CrownFill) -> Skeleton2D:
     appended: its nodes where frame 1 sees them, branching levels again, unmeasured."""
     n = len(fill.parents)
     xy = plane_to_image(fill.rest, sk.nodes2d[0, 0].astype(np.float64))
-    conf = None if sk.confidence is None else np.concatenate([sk.confidence, np.zeros(n - len(sk.parents))])
+    conf = sk.confidence                        # (F, N): the grown nodes unmeasured in every frame
+    if conf is not None:
+        conf = np.concatenate([conf, np.zeros(conf.shape[:-1] + (n - conf.shape[-1],), conf.dtype)], axis=-1)
     return replace(sk, parents=fill.parents.astype(sk.parents.dtype), nodes2d=xy[None].astype(np.float32),
                    level=branching_level(fill.parents).astype(sk.level.dtype), confidence=conf)
 

@@ -82,3 +82,19 @@ def test_a_missing_limb_is_grown_inside_the_predicted_crown(tmp_path, variant, s
           f"grown over the outline {over.mean():.3f}, within the predicted reach {within.mean():.3f}")
     assert fill.added > 0 and after >= max(0.7, before + 0.3)
     assert over.all() and within.all()
+
+
+def test_grown_skeleton_keeps_frame_1_and_pads_its_confidence():
+    """The grown nodes join the traced ones (frame 1's positions from their rest pose, branching
+    levels again) and count as unmeasured: a confidence ``(F, N)`` is padded along its nodes (it
+    was concatenated as if it were ``(N,)``, which raised on a photo whose trace measured it)."""
+    from tree_from_video.core.generate.photo_crown import CrownFill
+    from tree_from_video.core.reconstruct.skeleton2d import Skeleton2D
+    sk = Skeleton2D(parents=np.array([-1, 0]), nodes2d=np.array([[[50.0, 100.0], [50.0, 60.0]]], np.float32),
+                    level=np.array([0, 0]), fps=25.0, confidence=np.array([[0.9, 0.8]], np.float32))
+    rest = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 40.0], [10.0, 3.0, 50.0], [-8.0, 0.0, 45.0]])  # px, z up
+    fill = CrownFill(parents=np.array([-1, 0, 1, 1]), rest=rest, added=2, gap_share=0.0, left=0)
+    out = pipeline.grown_skeleton(sk, fill)
+    np.testing.assert_allclose(out.nodes2d[0], [[50, 100], [50, 60], [60, 50], [42, 55]])
+    np.testing.assert_allclose(out.confidence, [[0.9, 0.8, 0.0, 0.0]])
+    assert out.confidence.dtype == np.float32 and out.level.tolist() == [0, 0, 1, 1]
