@@ -155,6 +155,10 @@ def track_videos(info: VideoInfo, outlines: list[Outline], start: int, stop: int
 def read_outlines(info: VideoInfo, start: int, outline_path, scale: float) -> list[Outline]:
     """The trees' outlines of ``outline_path`` (see :func:`run_all`) for the video ``info``."""
     if isinstance(outline_path, str) and outline_path == "auto":   # every tree that stands apart
+        if info.frame_count - start <= 1:                          # a photo: nothing sways to find it by
+            from .photo_outline import photo_outline
+            frame = next(iter_frames(info, start, start + 1))
+            return [photo_outline(frame, f"'{os.path.basename(info.path)}'")]
         from .auto_outline import auto_outlines
         return auto_outlines(info, start)
     if isinstance(outline_path, (str, os.PathLike)):
