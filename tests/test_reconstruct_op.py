@@ -289,6 +289,13 @@ def test_a_photo_reconstructs_a_swaying_tree(addon, tmp_path):
     assert (start, end) == (1, round(3 * fps) + 1)                     # 3 s at the photo's rate, both ends
     doc = provenance.kept(coll)
     assert (doc["settings"]["species"], doc["settings"]["seconds"], doc["settings"]["wind"]) == ("sparse", 3.0, 2.0)
+    # Outline › Automatic on a photo: the tree found in it (nothing sways to find it by)
+    addon.outline_source, addon.collection_name = "AUTO", "Photo Auto"
+    result, err = _run_op()
+    assert result == {"FINISHED"}, err
+    rig = next(o for o in bpy.data.collections["Photo Auto"].objects if o.type == "ARMATURE")
+    assert len(rig.data.bones) > 50
+    addon.outline_source = "FILE"
     flat = str(tmp_path / "flat.png")
     cv2.imwrite(flat, np.full((300, 400, 3), 90, np.uint8))
     addon.video_path, addon.collection_name = flat, "Flat"

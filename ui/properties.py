@@ -161,8 +161,9 @@ class TreeVideoSettings(bpy.types.PropertyGroup):
         name="Outline", default="FILE",
         items=[("FILE", "File", "A polygon .json (pixels of frame 1) or a mask image (white = tree)"),
                ("MASK", "Blender Mask", "A Mask drawn over the clip in the Movie Clip editor"),
-               ("AUTO", "Automatic", "What sways in the first seconds while the background stays still "
-                                     "(best effort: check it with Track & Preview)"),
+               ("AUTO", "Automatic", "What sways in the first seconds while the background stays still; in a "
+                                     "photo, what stands out from the picture's border (best effort: check it "
+                                     "with Track & Preview)"),
                ("ANNOTATION", "Annotation", "A closed line drawn around the tree with the Annotate tool over "
                                            "the video's clip in the Movie Clip editor, on frame 1")],
         description="Where the outline of the tree in frame 1 comes from")
