@@ -98,6 +98,24 @@ def test_tip_spectrum_by_hand():
     assert joint_peak_hz(nodes, np.array([-1, 0, 1, 2]), 10.0) == pytest.approx(0.3)
 
 
+def test_the_wind_rises_from_the_photos_pose():
+    """Frame 1 is the photo's pose exactly, the wind at half strength halfway up its rise (the
+    smoothstep 3u² − 2u³), full after it; bone lengths kept throughout."""
+    from tree_from_video.core.generate.photo import PhotoMotion, sway, wind_rise
+    rise = wind_rise(26, 10.0, 1.0)
+    assert rise[0] == 0.0 and rise[5] == pytest.approx(0.5) and rise[2] == pytest.approx(3 * 0.04 - 2 * 0.008)
+    assert (rise[10:] == 1.0).all() and (np.diff(rise) >= 0).all()
+    assert (wind_rise(5, 10.0, 0.0) == 1.0).all()
+    parents = np.array([-1, 0, 1, 1])
+    rest = np.array([[0.0, 0, 0], [0, 0, 2.0], [1.0, 0, 3.0], [-1.0, 0.5, 3.0]])
+    nodes = sway(load_species_spec("broad")[0], parents, rest, PhotoMotion(seconds=4.0), 10.0)
+    assert np.array_equal(nodes[0], rest)
+    moved = np.abs(nodes - rest).max(axis=(1, 2))
+    assert moved[1] < 0.1 * moved[15:].max()                        # barely stirred a tenth of a second in
+    lengths = np.linalg.norm(nodes[:, 1:] - nodes[:, parents[1:]], axis=2)
+    assert np.allclose(lengths, lengths[0], atol=1e-9)
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("variant,seed,species", [("broad", -1, "broad"), ("sparse", -1, "broad"),
                                                   ("conifer", 101, "conifer"), ("gusts", 2, "broad")])

@@ -33,12 +33,14 @@ SPECIES_OF_FORM = {"broadleaf": "broad", "conifer": "conifer", "palm": "palm"}
 class PhotoMotion:
     """How a photo's tree sways: ``species`` (a library name or a species .json; "": the library's
     species of the traced form), ``seconds`` of animation, ``wind`` (1 as in the species' source
-    clip, 2 twice as strong), ``seed`` of the sampled sway."""
+    clip, 2 twice as strong), ``seed`` of the sampled sway, ``rise_s`` seconds over which the wind
+    rises from calm (a smoothstep), so that frame 1 is the photo's own pose."""
 
     species: str = ""
     seconds: float = param(8.0, 0.0, 600.0, lo_open=True, what="--seconds", unit="s")
     wind: float = param(1.0, 0.0, 10.0, what="--wind")
     seed: int = 0
+    rise_s: float = param(1.0, 0.0, 60.0, what="the wind's rise", unit="s")
 
 
 def is_photo(path: str | os.PathLike) -> bool:
@@ -82,9 +84,19 @@ def species_for(m: PhotoMotion, form: str):
 def sway(model, parents: np.ndarray, rest: np.ndarray, m: PhotoMotion, fps: float) -> np.ndarray:
     """``(F, N, 3)`` node positions (the units of ``rest (N, 3)``): the species' sway sampled for
     this skeleton (:func:`.generate.sway.sample_rotations`, ``F = round(seconds · fps) + 1``), scaled
-    by the wind, on the rest pose by forward kinematics (bone lengths exact, the root still)."""
+    by the wind and by its rise (0 at frame 1, smoothstep to 1 at ``rise_s``: the sway's random
+    phases would otherwise start the tree away from the photo), on the rest pose by forward
+    kinematics (bone lengths exact, the root still)."""
     from .sway import forward_kinematics, sample_rotations
     n = int(round(m.seconds * fps)) + 1
     rng = np.random.default_rng(m.seed)
     rot = sample_rotations(model, parents, np.asarray(rest, np.float64), n, fps, rng) * float(m.wind)
-    return forward_kinematics(parents, rest, rot)
+    return forward_kinematics(parents, rest, rot * wind_rise(n, fps, m.rise_s)[:, None, None])
+
+
+def wind_rise(n: int, fps: float, rise_s: float) -> np.ndarray:
+    """``(n,)`` the wind's share at each frame: ``3u² − 2u³`` with ``u = min(t / rise_s, 1)``, ``t``
+    seconds from frame 1 (all ones when ``rise_s`` is 0)."""
+    t = np.arange(n) / float(fps)
+    u = np.clip(t / rise_s, 0.0, 1.0) if rise_s > 0 else np.ones(n)
+    return u * u * (3.0 - 2.0 * u)
