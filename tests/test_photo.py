@@ -207,8 +207,12 @@ def test_bad_photos_one_line_exit_2(tmp_path):
     for k in range(3):
         _write(tmp_path / f"f{k}.png", rng.integers(0, 255, (160, 200, 3), dtype=np.uint8))
     subprocess.run(["ffmpeg", "-v", "error", "-y", "-framerate", "5", "-i", str(frames), str(gif)], check=True)
+    h, w = cv2.imread(frame_one_jpeg(committed("broad"), tmp_path / "size.jpg")).shape[:2]
+    sky = np.clip(np.full((h, w, 3), (220.0, 170.0, 110.0)) + rng.normal(0, 3, (h, w, 3)), 0, 255).astype(np.uint8)
+    sky[int(0.8 * h):] = (60, 120, 70)
+    sky = _write(tmp_path / "sky.jpg", sky)            # sky over grass where the outline is: no tree in it
     cases = [(small, "at least 128 px"), (grey, "one flat colour"), (broken, "cannot be read as an image"),
-             (gif, "animated GIF")]
+             (gif, "animated GIF"), (sky, "no tree inside the outline")]
     for path, words in cases:
         out = tmp_path / ("out_" + os.path.basename(str(path)))
         code, _, err = run(path, "--outline", outline, "--out", out)

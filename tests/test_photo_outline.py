@@ -90,6 +90,19 @@ def test_nothing_to_find_is_one_line():
         po.photo_outline(sky)
 
 
+def test_a_drawn_outline_must_hold_a_tree():
+    img, truth, g = painted_tree()
+    round_tree = cv2.dilate(truth.astype(np.uint8), np.ones((15, 15), np.uint8)) > 0
+    assert po.textured_share(img, round_tree) >= 0.3
+    po.check_tree_inside(img, round_tree)                          # no error
+    sky = np.zeros_like(truth)
+    sky[10:60, 330:390] = True                                    # sky beside the crown
+    sky[g + 2:g + 25, 100:160] = True                             # and the grass
+    assert po.textured_share(img, sky) < 0.01
+    with pytest.raises(InputError, match=r"no tree inside the outline in the photo: only 0\.\d% of it"):
+        po.check_tree_inside(img, sky)
+
+
 HELD_OUT = [(v, 3) for v in ("broad", "conifer", "sparse", "dense", "palm", "hard", "tiny", "gusts", "grey",
                              "gentle")] + [(v, 2) for v in ("backlit", "autumn", "hidden", "flicker")]
 

@@ -201,6 +201,12 @@ def run_all(video: str, outline_path, settings: ReconstructSettings | None = Non
     info = open_video(video, s.scale)
     start, stop = parse_frame_range(s.frames, info.frame_count)
     outlines = read_outlines(info, start, outline_path, s.scale)
+    if info.frame_count - start <= 1:                # a photo: each outline must hold a tree
+        from .photo_outline import check_tree_inside
+        photo = next(iter_frames(info, start, start + 1))
+        for k, o in enumerate(outlines):
+            check_tree_inside(photo, o.mask, f"'{os.path.basename(info.path)}'" if len(outlines) == 1
+                              else f"outline {k + 1} of '{os.path.basename(info.path)}'")
     if one and len(outlines) > 1:
         raise InputError(f"the outline holds {len(outlines)} trees; reconstruct one at a time, or all of "
                          "them with the batch (one folder per tree)")
