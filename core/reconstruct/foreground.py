@@ -46,10 +46,13 @@ GROWTH_LIMIT = 1.05
 #: when it marks less than this share of what :func:`ratio_map` marks (synthetic samples 0.93–1.06,
 #: real crowns whose outline crosses foliage or other trees 0.25–0.74)
 CONTAMINATED = 0.85
-#: the cut adds to its seeds only pixels at least this textured (:func:`local_texture`: sky and
-#: walls ~0–1, foliage 2–4; the cut's additions on the samples: a sparse crown's sky 0.6 median,
-#: a backlit or hidden crown's leaves 2.2–5.4)
+#: the cut adds to its seeds no smooth pixels, less textured than this (:func:`local_texture`: sky
+#: and walls ~0–1, foliage 2–4; the cut's additions on the samples: a sparse crown's sky 0.6
+#: median, a backlit or hidden crown's leaves 2.2–5.4) ...
 ADDED_TEXTURE = 1.5
+#: ... in patches (8-connected) of at least this share of the seeds' area: the samples' sky through
+#: the crown 1.3–13 % a patch, a storm palm's leaflets 0.6 % (their widths measure the fronds)
+SKY_PATCH = 0.01
 #: a cut that keeps less than this share of its seeds has collapsed (a thin tree at 160 × 120: 0)
 COLLAPSED = 0.3
 #: the local test runs at half the cut's size when that leaves at least this many px a side
@@ -81,9 +84,16 @@ def local_colour_test(img: np.ndarray, outline: np.ndarray, thr: float, k: int =
     colour test's threshold). Against the light the ring holds sky beside the crown and shadowed
     ground under it: compared with the whole ring a dark crown matches the ground; compared with
     the ring beside it, it does not."""
+    return local_colour_distance(img, outline, k) > thr
+
+
+def local_colour_distance(img: np.ndarray, outline: np.ndarray, k: int = LOCAL_K) -> np.ndarray:
+    """``(H, W)`` float32: inside ``outline``, each pixel's CIELAB distance to the nearest in colour
+    of the ``k`` background-ring pixels nearest it in the image (:func:`local_colour_test`); 0
+    outside the outline and everywhere when the ring has fewer than ``k`` pixels."""
     h, w = outline.shape
     ry, rx = background_ring(outline)
-    out = np.zeros((h, w), bool)
+    out = np.zeros((h, w), np.float32)
     if len(ry) < k:
         return out
     lab = frame_lab(img)
@@ -97,7 +107,7 @@ def local_colour_test(img: np.ndarray, outline: np.ndarray, thr: float, k: int =
     for a in range(0, len(iy), n):
         diff = ring_lab[idx[a:a + n]] - px_lab[a:a + n, None]
         d2 = np.einsum("pkc,pkc->pk", diff, diff)       # squared distances: no square root per pair
-        out[iy[a:a + n], ix[a:a + n]] = d2.min(1) > thr * thr
+        out[iy[a:a + n], ix[a:a + n]] = np.sqrt(d2.min(1))
     return out
 
 
@@ -158,12 +168,12 @@ def foreground(frame_bgr: np.ndarray, outline: np.ndarray, tmap: TreeMap | None 
     half = min(img.shape[:2]) >= 2 * LOCAL_MIN_SIDE     # the seeds at half that size (4× fewer pixels)
     if half:
         hs = (img.shape[1] // 2, img.shape[0] // 2)
-        col = local_colour_test(cv2.resize(img, hs, interpolation=cv2.INTER_AREA),
-                                cv2.resize(ol.astype(np.uint8), hs, interpolation=cv2.INTER_NEAREST) > 0, tmap.thr)
-        col = cv2.resize(col.astype(np.uint8), (img.shape[1], img.shape[0]), interpolation=cv2.INTER_NEAREST) > 0
-        col &= ol
+        dist = local_colour_distance(cv2.resize(img, hs, interpolation=cv2.INTER_AREA),
+                                     cv2.resize(ol.astype(np.uint8), hs, interpolation=cv2.INTER_NEAREST) > 0)
+        dist = cv2.resize(dist, (img.shape[1], img.shape[0]), interpolation=cv2.INTER_NEAREST) * ol
     else:
-        col = local_colour_test(img, ol, tmap.thr)
+        dist = local_colour_distance(img, ol)
+    col = dist > tmap.thr
     pm = ratio_map(img, ol)
     rat = np.zeros_like(ol) if pm is None else (pm > 0.5) & ol       # cut size
     seeds, how = col, "graph cut"
@@ -190,11 +200,14 @@ def foreground(frame_bgr: np.ndarray, outline: np.ndarray, tmap: TreeMap | None 
     except cv2.error:                  # a degenerate mixture (e.g. one flat colour): the colour test
         return result(seeded, "colour")
     cut = (labels == cv2.GC_FGD) | (labels == cv2.GC_PR_FGD)
-    # what the cut adds to its seeds must have a crown's texture: smooth pixels the colour test
-    # found like the background are sky seen through the crown, which the cut took in for lying
-    # between branches (a sparse crown's V: 20-32 % of the seeds' area, texture median 0.6)
+    # what the cut adds to its seeds in sizeable smooth patches is sky seen through the crown, taken
+    # in for lying between branches (a sparse crown's V: 20-32 % of the seeds' area, texture median
+    # 0.6); smaller smooth patches are the insides of broad leaves (a palm's leaflets)
     texture = local_texture(cv2.cvtColor(img, cv2.COLOR_BGR2LAB)[..., 0].astype(np.float32) * (100.0 / 255.0))
-    cut &= seeds | (texture >= ADDED_TEXTURE)
+    smooth = (cut & ~seeds & (texture < ADDED_TEXTURE)).astype(np.uint8)
+    n, lab, stats, _ = cv2.connectedComponentsWithStats(smooth, connectivity=8)
+    big = np.flatnonzero(stats[1:, cv2.CC_STAT_AREA] >= SKY_PATCH * seeds.sum()) + 1
+    cut &= ~np.isin(lab, big)
     if s != 1.0:
         cut = cv2.resize(cut.astype(np.uint8), (w, h), interpolation=cv2.INTER_LINEAR) > 0
     mask = cut & outline
