@@ -194,7 +194,8 @@ def run_all(video: str, outline_path, settings: ReconstructSettings | None = Non
 
     ``outline_path``: a polygon .json (one polygon, or a list of them: one tree each) or mask image
     path (each large component a tree), ``"auto"`` (what sways in the first seconds,
-    :mod:`.auto_outline`), a polygon ``(M, 2)`` array in pixels of the original video (e.g. from a
+    :mod:`.auto_outline`; in a photo, a one-frame video, the tree :mod:`.photo_outline` finds, whose
+    outlines must each hold a tree's texture), a polygon ``(M, 2)`` array in pixels of the original video (e.g. from a
     Blender Mask) or a list of them."""
     s = settings or ReconstructSettings()
     check_reconstruct(s)
