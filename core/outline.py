@@ -155,6 +155,15 @@ def load_outlines(path: str | os.PathLike, width: int, height: int, scale: float
     return [Outline(_mask_to_polygon(m).astype(np.float32), m) for m in parts]
 
 
+def largest_component(mask: np.ndarray) -> np.ndarray:
+    """``mask (H, W)`` bool with only its largest 8-connected part (unchanged when it has one or
+    none: test ``.any()`` for an empty one)."""
+    n, lab, stats, _ = cv2.connectedComponentsWithStats(np.asarray(mask, np.uint8), connectivity=8)
+    if n <= 2:
+        return np.asarray(mask, bool)
+    return lab == 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
+
+
 def separate_regions(mask: np.ndarray, share: float, min_area: float = 0.0) -> list[np.ndarray]:
     """The 8-connected regions of ``mask (H, W)`` bool at least ``share`` of the largest one's area
     (and ``min_area`` px), each a bool mask, left to right: one tree each (a painted mask's

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from tree_from_video.core.errors import InputError
-from tree_from_video.core.outline import polygon_to_mask
+from tree_from_video.core.outline import largest_component, polygon_to_mask
 from tree_from_video.core.reconstruct import photo_outline as po
 
 from groundtruth import chamfer_coverage
@@ -63,7 +63,7 @@ def test_trunk_foot_follows_the_bark_into_the_grass():
     assert po.ground_line(kept) == g
     above = kept.copy()
     above[g:] = False
-    foot = po.trunk_foot(img, po.largest_region(above), g)
+    foot = po.trunk_foot(img, largest_component(above), g)
     assert np.flatnonzero(foot.any(1)).max() == g + 25            # the painted trunk's foot
     assert foot[g:].sum(1).max() <= 17                            # the trunk's 17 px, not the grass
 

@@ -22,7 +22,7 @@ import numpy as np
 from ..envelope import Envelope, envelope_from_outline
 from ..errors import InputError
 from ..meta import EnvelopeMeta
-from ..outline import Outline
+from ..outline import Outline, largest_component
 
 SHAPES = ("triangle", "circle", "pentagon", "heart")
 RASTER_ROWS = 400            # rows of the raster a shape is turned into (cell = height / 400)
@@ -138,15 +138,6 @@ def envelope_from_mask(mask: np.ndarray, metres_per_px: float, base_px: np.ndarr
     s = float(metres_per_px)
     poly = np.stack([(c[:, 0] - base_px[0]) * s, (base_px[1] - c[:, 1]) * s], 1)
     return ShapeEnvelope(env.z * s, env.centre * s, env.radius * s, polygon=poly, name=name, offset=np.zeros(2))
-
-
-def largest_component(mask: np.ndarray) -> np.ndarray:
-    """``mask (H, W)`` bool with only its largest 8-connected part (unchanged when it has one)."""
-    n, lab, stats, _ = cv2.connectedComponentsWithStats(mask.astype(np.uint8), connectivity=8)
-    if n <= 2:
-        return mask
-    big = 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
-    return lab == big
 
 
 def rasterize(polys: list[np.ndarray], rows: int) -> tuple[np.ndarray, float, np.ndarray]:

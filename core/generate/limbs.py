@@ -23,12 +23,13 @@ import cv2
 import numpy as np
 
 from ..errors import InputError
+from ..outline import largest_component
 from ..reconstruct.node_motion import follow_tracks
 from ..reconstruct.run import Result
 from ..reconstruct.skeleton2d import NODE_MOTION_SCALE, Skeleton2D, binarize, crown_scale
 from ..topology import branching_level, trunk_chain
 from .colonize import colonize, prune_stubs
-from .envelopes import Region2D, largest_component
+from .envelopes import Region2D
 from .growth import stem_top
 from .species import SpeciesModel
 

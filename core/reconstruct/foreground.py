@@ -5,7 +5,7 @@ around the outline as a whole. Against the light that fails: the sky above a bac
 the shadowed ground under it are both in the ring, and the dark crown is as near to the ground's
 colours as to nothing — a backlit sample lost 23 % of its crown (recall 0.77), another 99 %.
 Here a local colour test (each pixel against the ring pixels nearest it in the image,
-:func:`local_colour_test`) only seeds a graph cut (``cv2.grabCut``): pixels outside the outline
+:func:`local_colour_distance` over a threshold) only seeds a graph cut (``cv2.grabCut``): pixels outside the outline
 are background, those inside the test calls background probably background, the rest probably
 tree; two Gaussian mixtures (tree, background) learnt from those labels and a smoothness term
 between neighbours decide every pixel. Seeded with the whole ring's test, the cut lost that
@@ -78,19 +78,12 @@ class Foreground:
     method: str
 
 
-def local_colour_test(img: np.ndarray, outline: np.ndarray, thr: float, k: int = LOCAL_K) -> np.ndarray:
-    """``(H, W)`` bool inside ``outline``: pixels of ``img`` (BGR uint8) whose CIELAB distance to
-    every one of the ``k`` background-ring pixels nearest them *in the image* exceeds ``thr`` (the
-    colour test's threshold). Against the light the ring holds sky beside the crown and shadowed
-    ground under it: compared with the whole ring a dark crown matches the ground; compared with
-    the ring beside it, it does not."""
-    return local_colour_distance(img, outline, k) > thr
-
-
 def local_colour_distance(img: np.ndarray, outline: np.ndarray, k: int = LOCAL_K) -> np.ndarray:
     """``(H, W)`` float32: inside ``outline``, each pixel's CIELAB distance to the nearest in colour
-    of the ``k`` background-ring pixels nearest it in the image (:func:`local_colour_test`); 0
-    outside the outline and everywhere when the ring has fewer than ``k`` pixels."""
+    of the ``k`` background-ring pixels nearest it in the image; 0 outside the outline and
+    everywhere when the ring has fewer than ``k`` pixels. Against the light the ring holds sky
+    beside the crown and shadowed ground under it: compared with the whole ring a dark crown
+    matches the ground; compared with the ring beside it, it does not."""
     h, w = outline.shape
     ry, rx = background_ring(outline)
     out = np.zeros((h, w), np.float32)

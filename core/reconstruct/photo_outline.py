@@ -30,7 +30,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..errors import InputError
-from ..outline import Outline, polygon_to_mask
+from ..outline import Outline, largest_component, polygon_to_mask
 from .foreground import local_texture
 
 #: the cut works on the photo scaled so its larger side is at most this many px (0.4–1.8 s a real
@@ -85,14 +85,6 @@ def tree_cut(bgr: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
     return small, (seeds == cv2.GC_FGD) | (seeds == cv2.GC_PR_FGD), s
 
 
-def largest_region(mask: np.ndarray) -> np.ndarray | None:
-    """The largest 8-connected region of ``mask (h, w)`` bool, or None when it has none."""
-    n, lab, stats, _ = cv2.connectedComponentsWithStats(mask.astype(np.uint8), connectivity=8)
-    if n < 2:
-        return None
-    return lab == 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
-
-
 def ground_line(kept: np.ndarray) -> int:
     """The row (px from the top) where the ground under the tree begins in ``kept (h, w)`` bool,
     or ``h`` when the tree does not stand on a band of ground the cut kept.
@@ -115,8 +107,8 @@ def ground_line(kept: np.ndarray) -> int:
             continue
         above = kept.copy()
         above[g:] = False
-        tree = largest_region(above)
-        if tree is None:
+        tree = largest_component(above)
+        if not tree.any():
             continue
         span = np.where(tree.any(1), ww - np.argmax(tree[:, ::-1], 1) - np.argmax(tree, 1), 0)
         if tree[g - 3:g].sum(1).mean() <= NECK * span.max():
@@ -166,8 +158,8 @@ def photo_outline(bgr: np.ndarray, where: str = "the photo") -> Outline:
     g = ground_line(kept)
     above = kept.copy()
     above[g:] = False
-    tree = largest_region(above)
-    if tree is None:
+    tree = largest_component(above)
+    if not tree.any():
         raise InputError(f"could not find a tree standing clear of the background in {where}: nothing in it differs "
                          "from its border; draw the tree's outline and give --outline OUTLINE.json")
     tree = trunk_foot(small, tree, g)

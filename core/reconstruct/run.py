@@ -152,12 +152,14 @@ def track_videos(info: VideoInfo, outlines: list[Outline], start: int, stop: int
     return out
 
 
-def read_outlines(info: VideoInfo, start: int, outline_path, scale: float) -> list[Outline]:
-    """The trees' outlines of ``outline_path`` (see :func:`run_all`) for the video ``info``."""
+def read_outlines(info: VideoInfo, start: int, outline_path, scale: float,
+                  photo: np.ndarray | None = None) -> list[Outline]:
+    """The trees' outlines of ``outline_path`` (see :func:`run_all`) for the video ``info``
+    (``photo``: its frame ``start`` when the caller has already read it, BGR uint8)."""
     if isinstance(outline_path, str) and outline_path == "auto":   # every tree that stands apart
         if info.frame_count - start <= 1:                          # a photo: nothing sways to find it by
             from .photo_outline import photo_outline
-            frame = next(iter_frames(info, start, start + 1))
+            frame = photo if photo is not None else next(iter_frames(info, start, start + 1))
             return [photo_outline(frame, f"'{os.path.basename(info.path)}'")]
         from .auto_outline import auto_outlines
         return auto_outlines(info, start)
@@ -201,10 +203,12 @@ def run_all(video: str, outline_path, settings: ReconstructSettings | None = Non
     check_reconstruct(s)
     info = open_video(video, s.scale)
     start, stop = parse_frame_range(s.frames, info.frame_count)
-    outlines = read_outlines(info, start, outline_path, s.scale)
-    if info.frame_count - start <= 1:                # a photo: each outline must hold a tree
+    # a photo is decoded once: its outline may be found on it, each outline must hold a tree, and
+    # it is frame 1 of the work below
+    photo = frame_one(info, start, (info.height, info.width)) if info.frame_count - start <= 1 else None
+    outlines = read_outlines(info, start, outline_path, s.scale, photo)
+    if photo is not None:                            # a photo: each outline must hold a tree
         from .photo_outline import check_tree_inside
-        photo = next(iter_frames(info, start, start + 1))
         for k, o in enumerate(outlines):
             check_tree_inside(photo, o.mask, f"'{os.path.basename(info.path)}'" if len(outlines) == 1
                               else f"outline {k + 1} of '{os.path.basename(info.path)}'")
@@ -218,7 +222,7 @@ def run_all(video: str, outline_path, settings: ReconstructSettings | None = Non
     if s.cache_dir and n == 1:
         key = cache.stage_key(video, outlines[0].mask, start, stop, s.scale, s.track, s.levels)
         cached = cache.load(s.cache_dir, key)
-    frame = frame_one(info, start, outlines[0].mask.shape)
+    frame = photo if photo is not None else frame_one(info, start, outlines[0].mask.shape)
     # frame 1's foreground needs nothing from tracking: it is cut in a thread while the video is
     # tracked (OpenCV releases the GIL), so its single-core graph cut shares the tracking's two
     # cores instead of running alone after them (1080p dense crown: 2.1 s of a 16 s run)
