@@ -144,6 +144,9 @@ def test_photo_traced_from_its_own_outline(tmp_path, variant, seed):
     p = subprocess.run([sys.executable, os.path.join(ROOT, "batch.py"), photo, "--outline", "auto", "--out", str(out),
                         "--no-video", "--seconds", "2"], capture_output=True, text=True, timeout=600)
     assert p.returncode == 0, p.stderr
+    form = "conifer" if variant == "conifer" else "broadleaf"      # the clean sample's outline reads right
+    note = [ln for ln in p.stderr.splitlines() if "was read from the outline found on the photo" in ln]
+    assert len(note) == 1 and f"the form ({form}: " in note[0] and "choose Form:" in note[0], p.stderr
     truth = load_truth(folder)
     with np.load(out / "skeleton.npz") as z:
         nodes2d, parents = z["nodes2d"], z["parents"]
@@ -161,3 +164,20 @@ def test_photo_without_a_tree_exit_2(tmp_path):
     lines = [ln for ln in p.stderr.splitlines() if ln.strip()]
     assert p.returncode == 2 and lines[-1].startswith("error: could not find a tree"), p.stderr
     assert "Traceback" not in p.stderr and not os.path.exists(tmp_path / "out" / "tree3d.npz")
+
+
+def test_a_form_read_from_a_found_outline_says_what_it_is_worth():
+    """On real photos a found outline's form reading was near chance (benchmarks/real_photo_forms.py):
+    the run says so, with the counts, where the outline was found on a photo, and only there."""
+    from tree_from_video.core.reconstruct.form import FOUND_PHOTO_RIGHT, found_outline_note
+    from tree_from_video.core.reconstruct.run import _frame_one_look
+    img, truth, _ = painted_tree()
+    outline = po.photo_outline(img)
+    found = _frame_one_look(img, outline, "auto", found_on_photo=True)
+    right, read = FOUND_PHOTO_RIGHT[found.form]
+    assert found.note == found_outline_note(found.form, found.why)
+    assert f"right for {right} of {read} real photos" in found.note
+    assert f"choose Form: {'Broadleaf' if found.form == 'conifer' else 'Conifer'}" in found.note
+    assert _frame_one_look(img, outline, "auto").note is None                  # a drawn outline, a video's
+    assert _frame_one_look(img, outline, "conifer", found_on_photo=True).note is None   # a form chosen
+    assert all(0 < r <= n for r, n in FOUND_PHOTO_RIGHT.values())

@@ -89,3 +89,22 @@ def palm_hint(frame_bgr: np.ndarray | None, tree_px: np.ndarray | None) -> str |
         return None
     return (f"the crown is long straight strokes (texture coherence {c:.2f}; leafy crowns measure "
             f"0.23-0.38): a palm's fronds or bare branches; if it is a palm, choose Form: Palm")
+
+
+#: how often a form read from an outline found on a photo (``--outline auto``) was right, as
+#: (right, read) on the 48 labelled real photos of ``benchmarks/real_photo_forms.py`` (35 outlined):
+#: a found outline takes in the shrubs and trees round a tree's foot, which widen any crown low
+#: down, so broadleaves read as conifers about as often as conifers do (the width profiles of the
+#: two overlap, and so did the apex's taper, texture coherence, lightness and saturation measured
+#: on the same photos: no cue of the outline or the crown's pixels told them apart)
+FOUND_PHOTO_RIGHT = {"conifer": (6, 18), "broadleaf": (11, 17)}
+
+
+def found_outline_note(form: str, why: str) -> str:
+    """The warning a form read from an outline found on a photo carries: the reading, what it is
+    worth on real photos (:data:`FOUND_PHOTO_RIGHT`), and the choice that settles it."""
+    right, read = FOUND_PHOTO_RIGHT.get(form, (0, 0))
+    other = "Broadleaf" if form == "conifer" else "Conifer"
+    return (f"the form ({form}: {why}) was read from the outline found on the photo, and such readings "
+            f"were right for {right} of {read} real photos (a found outline takes in what stands round the "
+            f"tree's foot); if the tree is not a {form}, choose Form: {other}")

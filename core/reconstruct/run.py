@@ -21,7 +21,7 @@ from ..progress import ProgressFn, expected_seconds, report, stage_split, sub_pr
 from . import cache
 from .appearance import AppearanceAccumulator, AppearanceMaps
 from .foreground import Foreground, foreground
-from .form import detect_form, palm_hint
+from .form import detect_form, found_outline_note, palm_hint
 from .hierarchy import Hierarchy, HierarchyParams, build_hierarchy
 from .node_motion import confidence_warning
 from .skeleton2d import FOLD_ALPHA, Skeleton2D, paper_skeleton
@@ -226,7 +226,8 @@ def run_all(video: str, outline_path, settings: ReconstructSettings | None = Non
     # frame 1's foreground needs nothing from tracking: it is cut in a thread while the video is
     # tracked (OpenCV releases the GIL), so its single-core graph cut shares the tracking's two
     # cores instead of running alone after them (1080p dense crown: 2.1 s of a 16 s run)
-    early = _frame_one_work(frame, outlines, s.form)
+    early = _frame_one_work(frame, outlines, s.form,
+                            photo is not None and isinstance(outline_path, str) and outline_path == "auto")
     if cached is not None:
         per_tree = [cached[:2]]
         hiers = [cached[2]]
@@ -253,29 +254,32 @@ def run_all(video: str, outline_path, settings: ReconstructSettings | None = Non
 @dataclass
 class FrameOne:
     """What frame 1 alone gives one tree: its foreground (None without a frame), the form (chosen,
-    or detected from the outline) with why, and the suggestion to choose Palm (or None)."""
+    or detected from the outline) with why, and its warnings: the suggestion to choose Palm, and
+    what a form read from an outline found on a photo is worth (each None when it does not apply)."""
     fg: Foreground | None
     form: str
     why: str
     hint: str | None
+    note: str | None = None
 
 
-def _frame_one_look(frame: np.ndarray | None, outline: Outline, form: str) -> FrameOne:
-    """Frame 1's foreground, the form and the palm hint of one tree."""
+def _frame_one_look(frame: np.ndarray | None, outline: Outline, form: str, found_on_photo: bool = False) -> FrameOne:
+    """Frame 1's foreground, the form and the warnings of one tree (``found_on_photo``: its
+    outline was found on a photo, where the form its shape gives is unreliable)."""
     fg = foreground(frame, outline.mask) if frame is not None else None
     if form != "auto":
         return FrameOne(fg, form, "chosen", None)
     form, why = detect_form(outline.mask)
     hint = palm_hint(frame, None if fg is None else fg.mask) if form == "broadleaf" else None
-    return FrameOne(fg, form, why, hint)
+    return FrameOne(fg, form, why, hint, found_outline_note(form, why) if found_on_photo else None)
 
 
-def _frame_one_work(frame: np.ndarray | None, outlines: list[Outline], form: str) -> list:
+def _frame_one_work(frame: np.ndarray | None, outlines: list[Outline], form: str, found_on_photo: bool = False) -> list:
     """:func:`_frame_one_look` of every outline, started in one worker thread: futures, in order
     (an error is raised by the future's ``result()``)."""
     from concurrent.futures import ThreadPoolExecutor
     pool = ThreadPoolExecutor(1, thread_name_prefix="tree_from_video-frame1")
-    jobs = [pool.submit(_frame_one_look, frame, o, form) for o in outlines]
+    jobs = [pool.submit(_frame_one_look, frame, o, form, found_on_photo) for o in outlines]
     pool.shutdown(wait=False)       # the queued trees still run; the thread then ends
     return jobs
 
@@ -290,7 +294,7 @@ def _one_tree(info: VideoInfo, outline: Outline, start: int, stop: int, tracks: 
     else:
         skel = traced_skeleton(tracks, hier, outline, maps, s.trace, sk_prog, None if fg is None else fg.mask, form)
     note = confidence_warning(skel.confidence) if skel.confidence is not None else None
-    for line in (note, hint):
+    for line in (note, hint, look.note):
         if line:
             skel.warnings.append(line)
     return Result(info, outline, start, stop, tracks, hier, maps, skel, fg, form, why)
