@@ -81,8 +81,10 @@ def test_painted_tree_outline():
 def test_nothing_to_find_is_one_line():
     rng = np.random.default_rng(1)
     noise = rng.integers(0, 255, (200, 300, 3), dtype=np.uint8)   # the same everywhere, border and middle
-    with pytest.raises(InputError, match="could not find a tree"):
+    with pytest.raises(InputError, match="could not find a tree") as e:
         po.photo_outline(noise)
+    assert "running off the picture's top or sides" in str(e.value) and "whole tree in view" in str(e.value)
+    assert "\n" not in str(e.value)
     sky = np.zeros((200, 300, 3), np.uint8)
     sky[:] = (200, 150, 90)
     sky[90:110, 140:160] = (40, 120, 50)                          # a speck, not a tree

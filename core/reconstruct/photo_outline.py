@@ -63,6 +63,14 @@ TREE_TEXTURE = 2.0
 #: the smallest tree found: this share of the photo's height, and of its area
 MIN_HEIGHT = 0.25
 MIN_AREA = 0.03
+#: why no tree is found, as measured on real photos (``benchmarks/real_photo_forms.py``: all 13
+#: of the 48 whole-tree photos that found none had a crown running off the picture's top or sides,
+#: or trees of the crown's colours filling the picture behind it; cut again with the top and
+#: sides only probably background, they gave the whole picture above the ground, and trees with
+#: square crowns), and what to do
+RUNS_OFF = "a crown running off the picture's top or sides, or other trees of its colours behind it?"
+WHOLE_TREE = ("use a photo with the whole tree in view against the sky or the ground, or draw the tree's outline "
+              "and give --outline OUTLINE.json")
 
 
 def tree_cut(bgr: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
@@ -161,7 +169,7 @@ def photo_outline(bgr: np.ndarray, where: str = "the photo") -> Outline:
     tree = largest_component(above)
     if not tree.any():
         raise InputError(f"could not find a tree standing clear of the background in {where}: nothing in it differs "
-                         "from its border; draw the tree's outline and give --outline OUTLINE.json")
+                         f"from its border ({RUNS_OFF}); {WHOLE_TREE}")
     tree = trunk_foot(small, tree, g)
     rows = np.flatnonzero(tree.any(1))
     height = float(np.ptp(rows) + 1)
@@ -172,8 +180,8 @@ def photo_outline(bgr: np.ndarray, where: str = "the photo") -> Outline:
     closed = cv2.dilate(closed, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * d + 1,) * 2))
     if height < MIN_HEIGHT * hh or closed.sum() < MIN_AREA * hh * ww:
         raise InputError(f"could not find a tree standing clear of the background in {where} (the largest region is "
-                         f"{height / hh:.0%} of its height, {closed.sum() / (hh * ww):.1%} of its area); draw the "
-                         "tree's outline and give --outline OUTLINE.json")
+                         f"{height / hh:.0%} of its height, {closed.sum() / (hh * ww):.1%} of its area: {RUNS_OFF}); "
+                         f"{WHOLE_TREE}")
     contours, _ = cv2.findContours(closed, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
     contour = max(contours, key=cv2.contourArea)
     poly = cv2.approxPolyDP(contour, 0.005 * cv2.arcLength(contour, True), True).reshape(-1, 2).astype(np.float64)
