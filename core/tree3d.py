@@ -34,8 +34,9 @@ class LeafClusters:
     ``scale (S,)`` each cluster's size relative to ``radius`` (smaller near the outline's edge);
     ``leaf_hz``, ``leaf_angle`` (radians): every leaf's own high-frequency flap about its stem,
     ``leaf_angle · sin(2π leaf_hz t + φ_leaf)`` (:func:`.detail.leaf_clusters.leaf_flap_offsets`);
-    ``shape`` ``"cluster"`` (cards round the centre) or ``"frond"`` (a palm's leaflets in pairs
-    along the axis, :func:`.detail.leaf_clusters.frond_template`); ``flutter_hz`` ω / 2π of the
+    ``shape`` ``"cluster"`` (cards round the centre), ``"frond"`` (a palm's leaflets in pairs
+    along the axis, :func:`.detail.leaf_clusters.frond_template`) or ``"spray"`` (a conifer's
+    needle sprays spreading level, :func:`.detail.leaf_clusters.spray_template`); ``flutter_hz`` ω / 2π of the
     flutter (0: not recorded, a file from before it was)."""
 
     node: np.ndarray

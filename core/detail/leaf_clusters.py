@@ -178,9 +178,72 @@ def frond_template(cards: int, radius: float, leaf_size: float, seed: int = 0) -
     return corners.reshape(-1, 3), uv
 
 
+def as_sprays(tree, leaves):
+    """A conifer's leaves: ``leaves`` (:class:`LeafClusters`) as needle sprays — shape ``"spray"``,
+    each one's axis pointing away from the trunk, level (its sprays spread level and droop at their
+    tips, :func:`spray_template`; a cluster on the trunk's line points along its bone). None
+    stays None."""
+    import dataclasses
+    if leaves is None:
+        return None
+    rest = tree.nodes3d[0].astype(np.float64)
+    out = leaves.pos.astype(np.float64) - rest[0]
+    out[:, 2] = 0.0                                           # level, away from the trunk's foot
+    par = np.asarray(tree.parents)[leaves.node]
+    bone = rest[leaves.node] - rest[np.maximum(par, 0)]
+    bone[:, 2] = 0.0
+    n = np.linalg.norm(out, axis=1, keepdims=True)
+    nb = np.linalg.norm(bone, axis=1, keepdims=True)
+    axis = np.where(n > 1e-6 * max(float(np.ptp(rest[:, 2])), 1e-9), out / np.maximum(n, 1e-12),
+                    np.where(nb > 1e-12, bone / np.maximum(nb, 1e-12), [1.0, 0.0, 0.0]))
+    return dataclasses.replace(leaves, axis=axis.astype(np.float32), shape="spray")
+
+
+def spray_template(cards: int, radius: float, leaf_size: float, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """A conifer's foliage in one cluster, in its bone's frame (Y = away from the trunk, X level
+    across it, Z up): ``cards`` needle sprays (:func:`.leaf_texture.spray_pixels`), each fanned up
+    to ±35° about Y in its level plane, drooping 5–25° toward its tip and tilted about its own twig
+    by up to ±:data:`ROLL_DEG` (listed most tilted first: a level of detail keeping a few cards of
+    each cluster keeps those a level camera sees, not sprays edge-on to it); their middles within
+    ``0.45 radius`` of the centre (less in depth and height), ``1.1–1.6 leaf_size`` long and 0.44 ×
+    as wide (with ``leaf_size`` = ``0.55 radius``, the cluster's own, the ends stay within about
+    ``radius``, as a cluster's cards do). Same layout as :func:`cluster_template`."""
+    rng = np.random.default_rng(seed)
+    C = int(cards)
+    fan = rng.uniform(-1.0, 1.0, C) * np.radians(35.0)
+    droop = rng.uniform(np.radians(5.0), np.radians(25.0), C)
+    along = np.stack([np.sin(fan) * np.cos(droop), np.cos(fan) * np.cos(droop), -np.sin(droop)], 1)
+    level = np.stack([np.cos(fan), -np.sin(fan), np.zeros(C)], 1)          # level, across the spray
+    roll = rng.uniform(-1.0, 1.0, (C, 1)) * np.radians(ROLL_DEG)             # each spray tilted about itself
+    roll = roll[np.argsort(-np.abs(roll[:, 0]))]     # most tilted first: what a LOD keeps (lod.kept_cards)
+    width = np.cos(roll) * level + np.sin(roll) * np.cross(along, level)
+    length = 1.6 * leaf_size * rng.uniform(0.7, 1.0, (C, 1))
+    # the sprays' middles about the centre, as a cluster's leaves are: the crown the clusters fill
+    # keeps its edge instead of growing outward by half a spray
+    middle = rng.uniform(-0.45, 0.45, (C, 3)) * radius * np.array([1.0, 0.8, 0.6])
+    stem = middle - 0.5 * along * length
+    w = 0.22 * length
+    corners = np.stack([stem - width * w, stem + width * w,
+                        stem + width * w + along * length, stem - width * w + along * length], axis=1)
+    uv = np.tile(np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]), (C, 1))
+    return corners.reshape(-1, 3), uv
+
+
+#: a conifer's sprays are tilted about their own twig by up to this many degrees either way: level
+#: sprays are edge-on to a camera level with the crown, and the crown seen from the side would
+#: thin out to its layers' edges
+ROLL_DEG = 75.0
+
+
+#: each leaf shape's card layout
+TEMPLATES = {"cluster": cluster_template, "frond": frond_template, "spray": spray_template}
+#: the shapes whose clusters keep their X axis level (no random roll about their axis)
+LEVEL = ("frond", "spray")
+
+
 def template(shape: str, cards: int, radius: float, leaf_size: float, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
-    """The card layout of one cluster of ``shape`` (``"cluster"`` or ``"frond"``)."""
-    return (frond_template if shape == "frond" else cluster_template)(cards, radius, leaf_size, seed)
+    """The card layout of one cluster of ``shape`` (:data:`TEMPLATES`; ``"cluster"`` for any other)."""
+    return TEMPLATES.get(shape, cluster_template)(cards, radius, leaf_size, seed)
 
 
 def axis_frames(axis: np.ndarray, seed: int = 0, level: bool = False) -> np.ndarray:
@@ -202,7 +265,7 @@ def leaf_mesh(leaves) -> dict:
     ``co (S·4C, 3)`` metres, ``uv (S·4C, 2)``, ``cluster (S·4C,)`` owning cluster per vertex,
     ``colour (S·4C, 3)`` sRGB (the cluster's video colour, ±10 % per card), ``quads`` = S·C."""
     tco, tuv = template(leaves.shape, leaves.cards, leaves.radius, leaves.leaf_size, leaves.seed)
-    R = axis_frames(leaves.axis.astype(np.float64), leaves.seed, leaves.shape == "frond")
+    R = axis_frames(leaves.axis.astype(np.float64), leaves.seed, leaves.shape in LEVEL)
     co = leaves.pos[:, None].astype(np.float64) + np.einsum("sij,vj->svi", R, tco) * leaves.scales()[:, None, None]
     S, V = co.shape[:2]
     rng = np.random.default_rng(leaves.seed + 2)

@@ -167,7 +167,8 @@ def build_tree(context, tree: Tree3D, collection_name: str, *, replace: bool = F
             leaf_mat = (materials or {}).get("leaf")
             if leaf_mat is None:
                 leaf_mat = created.add(bpy.data.materials, mats.leaf_material(
-                    names["leaf_material"], leaf_image, look.leaf_tint, look.leaf_colour))
+                    names["leaf_material"], leaf_image, look.leaf_tint, look.leaf_colour,
+                    tree.leaves.shape if tree.leaves is not None else "cluster"))
                 for img in mats.material_images(leaf_mat):
                     created.add(bpy.data.images, img)
         timings["materials"] = time.perf_counter() - t

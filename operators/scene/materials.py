@@ -11,9 +11,8 @@ import numpy as np
 from ...core.asset.look import bark_solid as bark_colour
 from ...core.detail.albedo import srgb_to_linear
 from ...core.detail.bark_texture import BARK_LOOK, BARK_RAMP, bark_ramp  # noqa: F401  (BARK_RAMP: re-exported)
+from ...core.detail.leaf_texture import TEXTURE_SIZE, shape_pixels
 from ...core.errors import InputError
-
-TEXTURE_SIZE = 128
 
 #: custom properties of a bark material: its kind, and the video's bark colour (sRGB) if any
 BARK_KEY = "tree_video_bark"
@@ -145,23 +144,10 @@ def photo_bark_material(name: str, albedo: np.ndarray, normal: np.ndarray, rough
     return mat
 
 
-def leaf_texture_pixels(size: int = TEXTURE_SIZE, tint=(1.0, 1.0, 1.0)) -> np.ndarray:
-    """``(size, size, 4)`` float RGBA of one leaf (stem at the bottom, tip at the top): a pointed
-    blade ``|u − ½| < 0.45 sin(π v^0.8)`` in ``tint`` (sRGB) shaded by a darker midrib,
-    transparent outside."""
-    v, u = np.mgrid[0:size, 0:size].astype(np.float64) / (size - 1)
-    half = 0.45 * np.sin(np.pi * np.clip(v, 0, 1) ** 0.8)
-    d = np.abs(u - 0.5)
-    alpha = np.clip((half - d) * size * 0.5, 0.0, 1.0)
-    grey = 0.85 - 0.25 * np.exp(-(d / 0.02) ** 2) * (v < 0.95) - 0.1 * (d / np.maximum(half, 1e-3)) ** 2
-    rgba = np.stack([grey, grey, grey, alpha], axis=-1)
-    rgba[..., :3] = np.clip(rgba[..., :3] / 0.85 * np.asarray(tint, np.float64), 0, 1)
-    return rgba.astype(np.float32)
-
-
-def leaf_image(name: str, path: str | None, tint=(1.0, 1.0, 1.0)):
-    """The leaf texture: the user's image at ``path`` (packed into the .blend), or a procedural
-    leaf (:func:`leaf_texture_pixels`). Raises InputError for an image Blender cannot read."""
+def leaf_image(name: str, path: str | None, tint=(1.0, 1.0, 1.0), shape: str = "cluster"):
+    """The leaf texture: the user's image at ``path`` (packed into the .blend), or the procedural
+    one of the leaf ``shape`` (:func:`core.detail.leaf_texture.shape_pixels`: a broad leaf, a
+    conifer's needle spray). Raises InputError for an image Blender cannot read."""
     if path:
         try:
             img = bpy.data.images.load(path, check_existing=False)
@@ -178,7 +164,7 @@ def leaf_image(name: str, path: str | None, tint=(1.0, 1.0, 1.0)):
             bpy.data.images.remove(img)
             raise
         return img
-    return packed_image(f"{name} Texture", leaf_texture_pixels(tint=tint))
+    return packed_image(f"{name} Texture", shape_pixels(shape, TEXTURE_SIZE, tint))
 
 
 def packed_image(name: str, rgba: np.ndarray, colorspace: str | None = None, alpha: bool = True):
@@ -195,7 +181,7 @@ def packed_image(name: str, rgba: np.ndarray, colorspace: str | None = None, alp
 
 
 def leaf_material(name: str, image_path: str | None = None, tint=(0.3, 0.5, 0.2),
-                  colour=None) -> bpy.types.Material:
+                  colour=None, shape: str = "cluster") -> bpy.types.Material:
     """Leaf material: the leaf image (``image_path`` or procedural, packed; alpha cut-out at 0.5,
     which glTF writes as ``alphaMode`` MASK: :data:`ALPHA_CLIP_KEY`)
     multiplied by the mesh's ``Col`` colour attribute (the video's colour), Principled BSDF,
@@ -215,7 +201,7 @@ def leaf_material(name: str, image_path: str | None = None, tint=(0.3, 0.5, 0.2)
             except TypeError:
                 pass
         mat.use_backface_culling = False
-        img = leaf_image(name, image_path, tint)
+        img = leaf_image(name, image_path, tint, shape)
         nt, out, bsdf = principled_nodes(mat)
         tex = nt.nodes.new("ShaderNodeTexImage")
         tex.image = img
