@@ -14,7 +14,7 @@ import numpy as np
 from .detail.albedo import SceneLight, bark_colour, hidden_bark, scene_light, trunk_pixels
 from .detail.branch_mesh import MeshParams, check_params
 from .detail.fronds import fit_fronds
-from .detail.leaf_clusters import LeafParams, as_fronds, as_sprays, check_leaf_params
+from .detail.leaf_clusters import LeafParams, check_leaf_params, leaves_for_form
 from .detail.leaf_seeds import place_leaves
 from .detail.twigs import TwigParams, add_twigs, check_twig_params
 from .envelope import envelope_to_meta
@@ -325,10 +325,9 @@ def build_3d(res: Result, s: Settings | None = None, name: str = "Tree",
     meta["allometry"] = allometry_report(tree.parents, tree.nodes3d[0], tree.radius)
     tree = add_twigs(tree, s.twigs, parts["details"], tree_px)  # after the motion solve, before the leaves
     tree = add_leaves(res, tree, s, frame, tree_px, fg.mask if fg is not None else None, light)
-    if res.form == "conifer":                   # a conifer's needles: sprays spreading level from the trunk
-        tree.leaves = as_sprays(tree, tree.leaves)
-    if res.form == "palm":                      # a palm's leaflets line its fronds, as wide as frame 1 shows
-        tree.leaves, note = fit_fronds(as_fronds(tree, tree.leaves), np.asarray(tree.meta["base_px"], float),
+    tree.leaves = leaves_for_form(tree, tree.leaves, res.form)    # a palm's fronds, a conifer's needle sprays
+    if res.form == "palm":                      # its leaflets as wide as frame 1 shows the fronds
+        tree.leaves, note = fit_fronds(tree.leaves, np.asarray(tree.meta["base_px"], float),
                                        float(tree.meta.get("metres_per_px", 1.0)), fg.mask if fg is not None else None)
         if note:
             tree.meta.update({"fronds": note})

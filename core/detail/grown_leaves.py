@@ -10,7 +10,7 @@ from scipy.spatial import cKDTree
 
 from ..envelope import Envelope
 from ..topology import trunk_chain
-from .leaf_clusters import BARK_RADIUS_SHARE, LeafParams, as_fronds, as_sprays, make_clusters
+from .leaf_clusters import BARK_RADIUS_SHARE, LeafParams, leaves_for_form, make_clusters
 from .leaf_cover import card_footprint, uncovered_sites
 
 #: rows of the raster the envelope's front view is measured on (a cluster is ~10 px across)
@@ -112,8 +112,7 @@ def grow_leaves(tree, info: dict, density: float = 1.0, seed: int = 0, params: L
     dark = (pos[:, 1] - pos.mean(0)[1]) > 0                 # behind the crown centre
     leaves = make_clusters(tree, node, pos, colour, dark, radius, info["cards"], seed,
                            None if size == 1.0 else np.full(len(node), size, np.float32), p)
-    form = tree.meta.get("form")
-    return as_fronds(tree, leaves) if form == "palm" else as_sprays(tree, leaves) if form == "conifer" else leaves
+    return leaves_for_form(tree, leaves, tree.meta.get("form"))
 
 
 def _top_up(node: np.ndarray, pos: np.ndarray, rest: np.ndarray, thin: np.ndarray, anchors: np.ndarray,

@@ -121,12 +121,21 @@ def as_fronds(tree, leaves):
     import dataclasses
     if leaves is None:
         return None
-    rest = tree.nodes3d[0].astype(np.float64)
-    par = np.asarray(tree.parents)[leaves.node]
-    d = rest[leaves.node] - rest[np.maximum(par, 0)]
-    n = np.linalg.norm(d, axis=1, keepdims=True)
-    axis = np.where(n > 1e-9, d / np.maximum(n, 1e-12), [0.0, 0.0, 1.0])
+    axis = _unit_rows(_bone_vectors(tree, leaves.node), 1e-9, [0.0, 0.0, 1.0])
     return dataclasses.replace(leaves, axis=axis.astype(np.float32), shape="frond")
+
+
+def _bone_vectors(tree, node: np.ndarray) -> np.ndarray:
+    """``(S, 3)``: each of ``node``'s bones at rest, the node minus its parent (0 at the root)."""
+    rest = tree.nodes3d[0].astype(np.float64)
+    return rest[node] - rest[np.maximum(np.asarray(tree.parents)[node], 0)]
+
+
+def _unit_rows(v: np.ndarray, tol: float, fallback) -> np.ndarray:
+    """``v (S, 3)``'s rows as unit vectors; ``fallback`` (a vector, or ``(S, 3)``) where a row's
+    length is ``tol`` or less."""
+    n = np.linalg.norm(v, axis=1, keepdims=True)
+    return np.where(n > tol, v / np.maximum(n, 1e-12), fallback)
 
 
 def cluster_template(cards: int, radius: float, leaf_size: float, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
@@ -189,14 +198,16 @@ def as_sprays(tree, leaves):
     rest = tree.nodes3d[0].astype(np.float64)
     out = leaves.pos.astype(np.float64) - rest[0]
     out[:, 2] = 0.0                                           # level, away from the trunk's foot
-    par = np.asarray(tree.parents)[leaves.node]
-    bone = rest[leaves.node] - rest[np.maximum(par, 0)]
+    bone = _bone_vectors(tree, leaves.node)
     bone[:, 2] = 0.0
-    n = np.linalg.norm(out, axis=1, keepdims=True)
-    nb = np.linalg.norm(bone, axis=1, keepdims=True)
-    axis = np.where(n > 1e-6 * max(float(np.ptp(rest[:, 2])), 1e-9), out / np.maximum(n, 1e-12),
-                    np.where(nb > 1e-12, bone / np.maximum(nb, 1e-12), [1.0, 0.0, 0.0]))
+    axis = _unit_rows(out, 1e-6 * max(float(np.ptp(rest[:, 2])), 1e-9), _unit_rows(bone, 1e-12, [1.0, 0.0, 0.0]))
     return dataclasses.replace(leaves, axis=axis.astype(np.float32), shape="spray")
+
+
+def leaves_for_form(tree, leaves, form: str | None):
+    """``leaves`` shaped for the tree's ``form``: a palm's as fronds (:func:`as_fronds`), a
+    conifer's as needle sprays (:func:`as_sprays`), any other's as they are (clusters)."""
+    return as_fronds(tree, leaves) if form == "palm" else as_sprays(tree, leaves) if form == "conifer" else leaves
 
 
 def spray_template(cards: int, radius: float, leaf_size: float, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
