@@ -14,13 +14,12 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import subprocess
 import sys
 import tempfile
 
-from _package import ROOT, load_package
+from real_photos import HERE, fetch_file
 
-HERE = os.path.join(ROOT, "benchmarks", "real_photos")
+from _package import load_package
 
 
 def main() -> int:
@@ -41,10 +40,7 @@ def main() -> int:
         read[truth] = {"conifer": 0, "broadleaf": 0, "no outline": 0}
         for k, path in enumerate(doc[truth]):
             photo = os.path.join(args.work, f"{truth}_{k:02d}{os.path.splitext(path)[1].lower()}")
-            blob = subprocess.run(["git", "--git-dir", args.git, "show", f"{doc['commit']}:{path}"],
-                                  capture_output=True, check=True).stdout
-            with open(photo, "wb") as fh:
-                fh.write(blob)
+            fetch_file(args.git, doc["commit"], path, photo)
             try:
                 info = open_video(photo, 1.0)
                 outline = read_outlines(info, 0, "auto", 1.0)[0]

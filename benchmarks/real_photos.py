@@ -25,6 +25,13 @@ from _package import ROOT, load_package
 HERE = os.path.join(ROOT, "benchmarks", "real_photos")
 
 
+def fetch_file(git: str, commit: str, path: str, dest: str) -> None:
+    """Write ``path`` as the repository at ``git`` (a git directory) holds it at ``commit`` to ``dest``."""
+    blob = subprocess.run(["git", "--git-dir", git, "show", f"{commit}:{path}"], capture_output=True, check=True).stdout
+    with open(dest, "wb") as fh:
+        fh.write(blob)
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--git", required=True, help="git directory of the fetched repository")
@@ -41,10 +48,7 @@ def main() -> int:
     rows, tiles = [], []
     for name, p in doc["photos"].items():
         photo = os.path.join(args.work, name + os.path.splitext(p["path"])[1].lower())
-        blob = subprocess.run(["git", "--git-dir", args.git, "show", f"{doc['commit']}:{p['path']}"],
-                              capture_output=True, check=True).stdout
-        with open(photo, "wb") as fh:
-            fh.write(blob)
+        fetch_file(args.git, doc["commit"], p["path"], photo)
         img = cv2.imread(photo)
         drawn = None
         outlines = ["auto"]
