@@ -290,3 +290,22 @@ def test_a_palms_leaflets_reach_as_far_as_frame_one_shows_its_fronds():
     assert note["width_px"] == pytest.approx(24.0, abs=2.5) and note["was_m"] == 0.05
     assert fit_fronds(leaves, base, scale, None)[0] is leaves                      # no foreground: as it was
     assert fit_fronds(dataclasses.replace(leaves, shape="cluster"), base, scale, fg)[0].leaf_size == 0.05
+
+
+def test_leaf_colour_over_a_gap_reads_the_nearest_tree_pixel():
+    """A point over sky 10 px from a green tuft (no tree pixel within its blur): it reads the tuft's
+    green, not the sky's blue (before: the plain blur there, the sky); the tuft's nearest pixel by
+    hand."""
+    from tree_from_video.core.detail.leaf_seeds import nearest_pixels, sample_colour
+    img = np.zeros((40, 40, 3), np.uint8)
+    img[:] = (230, 160, 90)                                   # BGR sky blue
+    img[18:23, 5:10] = (40, 150, 60)                          # BGR green tuft, x 5..9, y 18..22
+    tree_px = np.zeros((40, 40), bool)
+    tree_px[18:23, 5:10] = True
+    p = np.array([[20.0, 20.0], [7.0, 20.0]])                 # over the sky; on the tuft
+    np.testing.assert_array_equal(nearest_pixels(tree_px, p), [[9.0, 20.0], [7.0, 20.0]])
+    got = sample_colour(img, p, tree_px=tree_px)
+    np.testing.assert_allclose(got, np.array([[60, 150, 40]] * 2) / 255.0, atol=1e-3)   # RGB
+    plain = sample_colour(img, p[:1])[0]
+    np.testing.assert_allclose(plain, np.array([90, 160, 230]) / 255.0, atol=1e-3)
+    assert nearest_pixels(np.zeros((5, 5), bool), p) is None
