@@ -216,3 +216,28 @@ def test_bark_that_is_no_bark_colour_takes_the_default():
         assert (out.source == "default") == default, (bgr, out.why)
         if default:
             np.testing.assert_allclose(out.colour, albedo.BARK_SRGB)
+
+
+def test_sky_blue_clusters_in_a_green_crown_take_the_crowns_colour():
+    """Open conifers against a blue sky (real photos): 11–23 % of their clusters came out teal to
+    blue, the shade lit by the sky or the sky between needles. In a crown that is not blue such a
+    cluster takes the crown's hue at its own brightness; green, autumn-red and grey-free clusters
+    are kept, and a blue spruce (its median itself blue) keeps its blue."""
+    from tree_from_video.core.detail import albedo
+    assert albedo.hue(np.array([[1.0, 0, 0], [0, 1, 0], [0, 0, 1], [0, 1, 1], [0.5, 0.5, 0.5]])) == \
+        pytest.approx([0.0, 120.0, 240.0, 180.0, 0.0])
+    for c in np.random.default_rng(1).random((50, 3)):     # the same hue as the standard library's
+        assert albedo.hue(c) == pytest.approx(360.0 * colorsys.rgb_to_hsv(*c)[0], abs=1e-9)
+    rng = np.random.default_rng(0)
+    green = np.clip(np.array([0.30, 0.45, 0.18]) * rng.uniform(0.8, 1.2, (40, 1)), 0, 1)
+    teal = np.array([[0.37, 0.52, 0.55], [0.25, 0.31, 0.38]])            # hues 186°, 209°
+    red = np.array([[0.6, 0.2, 0.1]])                                    # an autumn leaf, 12°
+    out = albedo.leaf_colours(np.concatenate([green, teal, red]), "albedo", albedo.SceneLight())
+    np.testing.assert_allclose(out.colours[:40], green, atol=1e-6)
+    np.testing.assert_allclose(out.colours[42], red[0], atol=1e-6)
+    h = albedo.hue(out.colours[40:42])
+    assert (np.abs(h - albedo.hue(out.colour)) < 1.0).all()             # the crown's hue
+    lum = albedo.luminance(albedo.srgb_to_linear(out.colours[40:42]))
+    assert lum[0] > lum[1]                                               # each at its own brightness
+    spruce = np.clip(np.array([0.40, 0.52, 0.58]) * rng.uniform(0.8, 1.2, (40, 1)), 0, 1)
+    assert not albedo.sky_tinted(spruce, np.median(spruce, 0)).any()

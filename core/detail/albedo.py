@@ -19,7 +19,10 @@ of the 3D tree need the colour of the leaf itself (its albedo), which is what a 
    seen against the light) or *grey* (HSV saturation below :data:`MIN_SATURATION`). Lit green
    foliage is 0.08–0.3 and a third of an overcast sky's luminance; a backlit crown 0.005–0.02,
    a fortieth of it. An autumn maple passes and keeps its red. A colour brighter than any leaf
-   (above :data:`MAX_LUMINANCE`: a grey sky taken for white) is scaled down to it, hue kept.
+   (above :data:`MAX_LUMINANCE`: a grey sky taken for white) is scaled down to it, hue kept. In a
+   trusted crown a grey cluster (sky through a gap, a glint) and a sky-blue one in a crown that is
+   not blue (:func:`sky_tinted`: shade lit by a blue sky) take the crown's colour at their own
+   brightness.
 4. **Unreliable**: the albedo is a plausible foliage colour instead — the species' own when a
    species supplies one, else :data:`FOLIAGE_SRGB` — with each cluster's brightness relative to
    the median kept within ±:data:`SPREAD`, so the crown is not one flat colour.
@@ -29,7 +32,6 @@ sample), or ``"#RRGGBB"`` (the user's colour, with the clusters' brightness spre
 """
 from __future__ import annotations
 
-import colorsys
 import re
 from dataclasses import dataclass, field
 
@@ -57,6 +59,9 @@ SILHOUETTE_RATIO = 0.1
 MAX_LUMINANCE = 0.3
 #: HSV saturation below which the corrected colour carries no hue worth keeping
 MIN_SATURATION = 0.15
+#: HSV hues (degrees) of a blue sky and of what it lights, cyan to violet: no leaf of a crown that is
+#: not itself blue has them (green foliage 60–140°, autumn 0–60°, a copper beech 330–360°)
+SKY_HUES = (170.0, 270.0)
 #: a plausible foliage albedo, sRGB 0..1 (green the largest channel; linear luminance 0.15)
 FOLIAGE_SRGB = np.array([0.33, 0.46, 0.18])
 #: each cluster's brightness relative to the median, kept within 1 ± this where a colour is chosen
@@ -86,6 +91,29 @@ def saturation(srgb: np.ndarray) -> np.ndarray:
     c = np.asarray(srgb, np.float64)
     hi, lo = c.max(-1), c.min(-1)
     return np.where(hi > 1e-9, (hi - lo) / np.maximum(hi, 1e-9), 0.0)
+
+
+def hue(srgb: np.ndarray) -> np.ndarray:
+    """HSV hue ``(...)`` of sRGB ``(..., 3)`` in degrees 0..360 (red 0, green 120, blue 240; 0 for grey)."""
+    c = np.asarray(srgb, np.float64)
+    r, g, b = c[..., 0], c[..., 1], c[..., 2]
+    hi, d = c.max(-1), np.maximum(c.max(-1) - c.min(-1), 1e-12)
+    h = np.where(hi == r, ((g - b) / d) % 6.0, np.where(hi == g, (b - r) / d + 2.0, (r - g) / d + 4.0))
+    return np.where(c.max(-1) - c.min(-1) > 1e-12, 60.0 * h, 0.0)
+
+
+def sky_tinted(srgb: np.ndarray, crown: np.ndarray) -> np.ndarray:
+    """``(S,)`` bool: clusters ``srgb (S, 3)`` whose hue is the sky's (:data:`SKY_HUES`, saturation at
+    least :data:`MIN_SATURATION`) in a crown whose median colour ``crown (3,)`` is not: foliage in
+    shade lit by a blue sky, or sky seen between needles (real photos of open conifers against a blue
+    sky: 11–23 % of their clusters teal to blue in a crown of hue 68–78°). A glaucous crown (a blue
+    spruce) keeps its blue: its median is in the range itself."""
+    c = np.asarray(srgb, np.float64).reshape(-1, 3)
+    lo, hi = SKY_HUES
+    if lo <= float(hue(np.asarray(crown, np.float64))) <= hi:
+        return np.zeros(len(c), bool)
+    h = hue(c)
+    return (h >= lo) & (h <= hi) & (saturation(c) >= MIN_SATURATION)
 
 
 def parse_hex(value: str) -> np.ndarray | None:
@@ -196,9 +224,10 @@ def leaf_colours(sampled: np.ndarray, mode: str = "albedo", light: SceneLight | 
     faults = [w for w, bad in (("dark", lum < MIN_LUMINANCE), ("backlit", backlit),
                                ("grey", sat < MIN_SATURATION)) if bad]
     if not faults:
-        # a grey cluster in a coloured crown sampled sky through a gap or a glint, not a leaf: the
-        # crown's colour at its own brightness (a real 1080p crown: a tenth of its clusters white)
-        grey = saturation(corrected) < MIN_SATURATION
+        # a grey cluster in a coloured crown sampled sky through a gap or a glint, not a leaf, and a
+        # sky-blue one the sky or its light (sky_tinted): the crown's colour at its own brightness (a
+        # real 1080p crown: a tenth of its clusters white)
+        grey = (saturation(corrected) < MIN_SATURATION) | sky_tinted(corrected, med)
         if grey.any():
             corrected = corrected.copy()
             corrected[grey] = _spread(med, corrected)[grey]
@@ -257,7 +286,7 @@ def trunk_pixels(shape: tuple[int, int], parents: np.ndarray, nodes_px: np.ndarr
 
 def bark_hue(srgb: np.ndarray) -> float:
     """HSV hue of an sRGB ``(3,)`` colour in degrees 0..360 (red 0, yellow 60, green 120, cyan 180)."""
-    return 360.0 * colorsys.rgb_to_hsv(*(float(c) for c in np.asarray(srgb, np.float64)))[0]
+    return float(hue(np.asarray(srgb, np.float64)))
 
 
 def hidden_bark() -> LeafColour:
