@@ -123,7 +123,7 @@ def nearest_pixels(pixels: np.ndarray, points: np.ndarray) -> np.ndarray | None:
     y = np.clip(np.round(points[:, 1]).astype(int), 0, h - 1)
     y0, y1 = min(int(ys.min()), int(y.min())), max(int(ys.max()), int(y.max())) + 1
     x0, x1 = min(int(xs.min()), int(x.min())), max(int(xs.max()), int(x.max())) + 1
-    _, (iy, ix) = distance_transform_edt(~pixels[y0:y1, x0:x1], return_indices=True)
+    iy, ix = distance_transform_edt(~pixels[y0:y1, x0:x1], return_distances=False, return_indices=True)
     return np.stack([ix[y - y0, x - x0] + x0, iy[y - y0, x - x0] + y0], 1).astype(np.float64)
 
 
