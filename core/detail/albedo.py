@@ -227,10 +227,10 @@ def leaf_colours(sampled: np.ndarray, mode: str = "albedo", light: SceneLight | 
         # a grey cluster in a coloured crown sampled sky through a gap or a glint, not a leaf, and a
         # sky-blue one the sky or its light (sky_tinted): the crown's colour at its own brightness (a
         # real 1080p crown: a tenth of its clusters white)
-        grey = (saturation(corrected) < MIN_SATURATION) | sky_tinted(corrected, med)
-        if grey.any():
+        stray = (saturation(corrected) < MIN_SATURATION) | sky_tinted(corrected, med)
+        if stray.any():
             corrected = corrected.copy()
-            corrected[grey] = _spread(med, corrected)[grey]
+            corrected[stray] = _spread(med, corrected)[stray]
         if lum <= MAX_LUMINANCE:
             return LeafColour(corrected.astype(np.float32), med, "albedo", "the video's colour as albedo: " + facts)
         k = MAX_LUMINANCE / lum            # brighter than any leaf: darker, same chromaticity

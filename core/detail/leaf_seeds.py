@@ -45,12 +45,18 @@ class LeafSeeds:
     pos3d: np.ndarray
 
 
+def pixel_at(points: np.ndarray, shape: tuple) -> tuple[np.ndarray, np.ndarray]:
+    """Columns and rows ``(S,)``, ``(S,)`` of the pixels nearest ``points (S, 2)`` px (x, y), clipped
+    to an image of ``shape (H, W, ...)``."""
+    return (np.clip(np.round(points[:, 0]).astype(int), 0, shape[1] - 1),
+            np.clip(np.round(points[:, 1]).astype(int), 0, shape[0] - 1))
+
+
 def seed_intensity(gray: np.ndarray, points: np.ndarray, radius: float = 2.0) -> np.ndarray:
     """Mean grey level ``(S,)`` around each point ``(S, 2)`` px: a corner sits on an edge, so a
     single pixel says little about the leaf it belongs to."""
     blur = cv2.GaussianBlur(gray.astype(np.float32), (0, 0), radius)
-    x = np.clip(np.round(points[:, 0]).astype(int), 0, gray.shape[1] - 1)
-    y = np.clip(np.round(points[:, 1]).astype(int), 0, gray.shape[0] - 1)
+    x, y = pixel_at(points, gray.shape)
     return blur[y, x]
 
 
@@ -118,11 +124,8 @@ def nearest_pixels(pixels: np.ndarray, points: np.ndarray) -> np.ndarray | None:
     ys, xs = np.nonzero(pixels)
     if len(xs) == 0:
         return None
-    h, w = pixels.shape
-    x = np.clip(np.round(points[:, 0]).astype(int), 0, w - 1)
-    y = np.clip(np.round(points[:, 1]).astype(int), 0, h - 1)
-    y0, y1 = min(int(ys.min()), int(y.min())), max(int(ys.max()), int(y.max())) + 1
-    x0, x1 = min(int(xs.min()), int(x.min())), max(int(xs.max()), int(x.max())) + 1
+    x, y = pixel_at(points, pixels.shape)
+    (y0, y1), (x0, x1) = _window(np.r_[ys.min(), ys.max(), y], np.r_[xs.min(), xs.max(), x], 0, pixels.shape)
     iy, ix = distance_transform_edt(~pixels[y0:y1, x0:x1], return_distances=False, return_indices=True)
     return np.stack([ix[y - y0, x - x0] + x0, iy[y - y0, x - x0] + y0], 1).astype(np.float64)
 
@@ -134,8 +137,7 @@ def _blurred_at(bgr: np.ndarray, points: np.ndarray, radius: float,
                 tree_px: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
     """:func:`sample_colour`'s blur: ``(S, 3)`` sRGB at ``points (S, 2)`` px over ``tree_px`` (all
     pixels when None), and ``(S,)`` bool where too little tree lies near (the plain blur there)."""
-    x = np.clip(np.round(points[:, 0]).astype(int), 0, bgr.shape[1] - 1)
-    y = np.clip(np.round(points[:, 1]).astype(int), 0, bgr.shape[0] - 1)
+    x, y = pixel_at(points, bgr.shape)
     lost = np.zeros(len(x), bool)
     if len(x) == 0:
         return np.zeros((0, 3), np.float32), lost
@@ -321,8 +323,7 @@ def _size_at(dist_px: np.ndarray, points: np.ndarray, scale: float, radius: floa
     """Clusters' sizes ``(S,)`` relative to the ``radius`` (m) at ``points (S, 2)`` px: the distance
     map ``dist_px (H, W)`` (to where the foliage ends) there, in metres (``scale`` m per px), over
     the radius, within 0.25..1."""
-    x = np.clip(np.round(points[:, 0]).astype(int), 0, dist_px.shape[1] - 1)
-    y = np.clip(np.round(points[:, 1]).astype(int), 0, dist_px.shape[0] - 1)
+    x, y = pixel_at(points, dist_px.shape)
     return np.clip(dist_px[y, x] * scale / radius, 0.25, 1.0).astype(np.float32)
 
 
@@ -363,8 +364,7 @@ def centre_on_pixels(points: np.ndarray, pixels: np.ndarray, radius_px: int) -> 
     if len(pts) == 0:
         return pts
     h, w = pixels.shape
-    x = np.clip(np.round(pts[:, 0]).astype(int), 0, w - 1)
-    y = np.clip(np.round(pts[:, 1]).astype(int), 0, h - 1)
+    x, y = pixel_at(pts, (h, w))
     # the points' bounding box plus the disk: every disk lies inside it (the same sums as on the
     # whole frame, zero outside the frame as before)
     (y0, y1), (x0, x1) = _window(y, x, radius_px + 1, (h, w))
@@ -466,8 +466,8 @@ def fill_seeds(points: np.ndarray, frame_bgr: np.ndarray, mask: np.ndarray, step
         return np.zeros((0, 2), np.float32)
     pick = rng.choice(len(by), min(4000, len(by)), replace=False)
     bg = lab[by[pick], bx[pick]].astype(np.float32)
-    pi = np.clip(np.round(points).astype(int), 0, [w - 1, h - 1])
-    fg = lab[pi[:, 1], pi[:, 0]].astype(np.float32)
+    px, py = pixel_at(points, (h, w))
+    fg = lab[py, px].astype(np.float32)
     ci = cand.astype(int)
     c = lab[ci[:, 1], ci[:, 0]].astype(np.float32)
     d_fg, _ = cKDTree(fg).query(c)
